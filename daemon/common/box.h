@@ -1,0 +1,27 @@
+#pragma once
+/// @file
+/// Axis-aligned boxes in the world frame (metres).
+
+#include <Eigen/Core>
+
+namespace hg::common {
+
+/// Closed axis-aligned box [min, max] in metres. Value type, thread-compatible.
+struct Box3 {
+  Eigen::Vector3d min = Eigen::Vector3d::Zero();
+  Eigen::Vector3d max = Eigen::Vector3d::Zero();
+
+  [[nodiscard]] bool Contains(const Eigen::Vector3d& p_W) const {
+    return (p_W.array() >= min.array()).all() && (p_W.array() <= max.array()).all();
+  }
+  [[nodiscard]] bool IsValid() const { return (max.array() > min.array()).all(); }
+  [[nodiscard]] Eigen::Vector3d Size() const { return max - min; }
+  [[nodiscard]] double Volume() const { return Size().prod(); }
+  /// Corner i, bit 0 selects x max, bit 1 y max, bit 2 z max.
+  [[nodiscard]] Eigen::Vector3d Corner(int i) const {
+    return {(i & 1) ? max.x() : min.x(), (i & 2) ? max.y() : min.y(),
+            (i & 4) ? max.z() : min.z()};
+  }
+};
+
+}  // namespace hg::common

@@ -1,0 +1,314 @@
+#include "geometry/camera_yaml.h"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <set>
+#include <utility>
+
+#include <Eigen/Core>
+#include <Eigen/LU>
+
+#include "common/config_error.h"
+
+namespace hg::geometry {
+namespace {
+
+using common::ConfigError;
+
+/// yaml-cpp marks are 0-based; messages use 1-based lines (0 = unknown, omitted).
+int LineOf(const YAML::Node& node) { return node.Mark().line + 1; }
+
+/// Largest image side: the undistorter stores pixel indices in 16 bits and
+/// reserves 0xFFFF.
+constexpr int kMaxImageSide = 65535;
+
+/// |R^T R - I| (Frobenius) above this is not a rotation; loose enough for
+/// matrices written with ~6 significant digits.
+constexpr double kRotationTolerance = 1e-5;
+
+/// Reads one camera entry. `where` names the entry in messages ("cameras[2]"),
+/// empty for a stand-alone entry.
+class CameraParser {
+ public:
+  CameraParser(const YAML::Node& node, const std::string& file, std::string where)
+      : node_(node), file_(file), where_(std::move(where)) {}
+
+  CameraModel Parse() {
+    if (!node_.IsMap()) {
+      throw ConfigError::At(file_, LineOf(node_), Prefix() + "expected a map with the camera keys");
+    }
+    static const std::set<std::string> kKnown = {"name", "width", "height", "K",
+                                                 "R",    "t",     "P",      "distortion"};
+    for (const auto& kv : node_) {
+      const int line = LineOf(kv.first);
+      if (!kv.first.IsScalar())
+        throw ConfigError::At(file_, line, Prefix() + "keys must be strings");
+      const std::string key = kv.first.Scalar();
+      if (kKnown.count(key) == 0) {
+        throw ConfigError::At(file_, line, Prefix() + "unknown key '" + key + "'");
+      }
+      if (!keys_.emplace(key, kv).second) {
+        throw ConfigError::At(file_, line, Prefix() + "duplicate key '" + key + "'");
+      }
+    }
+
+    CameraModel camera;
+    camera.name = ParseName();
+    camera.width = ParseSide("width");
+    camera.height = ParseSide("height");
+
+    const bool has_p = Has("P");
+    const bool has_krt = Has("K") || Has("R") || Has("t");
+    if (has_p && has_krt) {
+      throw ConfigError::At(file_, LineOf(Key("P")), Prefix() + "give either K+R+t or P, not both");
+    }
+    if (Has("distortion")) {
+      const std::vector<double> d = Numbers("distortion", 5);
+      for (int i = 0; i < 5; ++i) camera.distortion[i] = d[i];
+    }
+    if (has_p) {
+      const std::vector<double> p = Numbers("P", 12);
+      Eigen::Matrix<double, 3, 4> P;
+      for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 4; ++c) P(r, c) = p[4 * r + c];
+      }
+      std::string error;
+      const std::optional<DecomposeResult> krt = DecomposeProjection(P, &error);
+      if (!krt) throw ConfigError::At(file_, LineOf(Key("P")), Path("P") + ": " + error);
+      camera.K = krt->K;
+      camera.R_CW = krt->R_CW;
+      camera.t_CW = krt->t_CW;
+      return camera;
+    }
+    for (const char* key : {"K", "R", "t"}) Require(key);
+    camera.K = Matrix3("K");
+    camera.R_CW = Matrix3("R");
+    const std::vector<double> t = Numbers("t", 3);
+    camera.t_CW = Eigen::Vector3d(t[0], t[1], t[2]);
+    CheckIntrinsics(camera.K);
+    CheckRotation(camera.R_CW);
+    return camera;
+  }
+
+  /// Line of the `name` key; valid after Parse() returned.
+  [[nodiscard]] int name_line() const { return LineOf(Key("name")); }
+
+ private:
+  [[nodiscard]] std::string Prefix() const { return where_.empty() ? "" : where_ + ": "; }
+  [[nodiscard]] std::string Path(const std::string& key) const {
+    return where_.empty() ? key : where_ + "." + key;
+  }
+  [[nodiscard]] bool Has(const std::string& key) const { return keys_.count(key) != 0; }
+  [[nodiscard]] const YAML::Node& Key(const std::string& key) const { return keys_.at(key).first; }
+  [[nodiscard]] const YAML::Node& Value(const std::string& key) const {
+    return keys_.at(key).second;
+  }
+  void Require(const std::string& key) const {
+    if (!Has(key)) {
+      throw ConfigError::At(file_, LineOf(node_), Prefix() + "missing key '" + key + "'");
+    }
+  }
+
+  std::string ParseName() const {
+    Require("name");
+    const YAML::Node& v = Value("name");
+    if (!v.IsScalar() || v.Scalar().empty()) {
+      throw ConfigError::At(file_, LineOf(Key("name")),
+                            Path("name") + ": expected a non-empty string");
+    }
+    return v.Scalar();
+  }
+
+  int ParseSide(const std::string& key) const {
+    Require(key);
+    const YAML::Node& v = Value(key);
+    int side = 0;
+    bool ok = v.IsScalar();
+    if (ok) {
+      try {
+        side = v.as<int>();
+      } catch (const YAML::Exception&) {
+        ok = false;
+      }
+    }
+    if (!ok || side <= 0 || side > kMaxImageSide) {
+      throw ConfigError::At(file_, LineOf(Key(key)),
+                            Path(key) + ": expected a positive integer (at most " +
+                                std::to_string(kMaxImageSide) + ")");
+    }
+    return side;
+  }
+
+  std::vector<double> Numbers(const std::string& key, std::size_t count) const {
+    const YAML::Node& v = Value(key);
+    const int line = LineOf(Key(key));
+    if (!v.IsSequence()) {
+      throw ConfigError::At(
+          file_, line, Path(key) + ": expected a list of " + std::to_string(count) + " numbers");
+    }
+    if (v.size() != count) {
+      throw ConfigError::At(file_, line,
+                            Path(key) + ": expected " + std::to_string(count) + " numbers, got " +
+                                std::to_string(v.size()));
+    }
+    std::vector<double> out(count);
+    for (std::size_t i = 0; i < count; ++i) {
+      const YAML::Node& e = v[i];
+      const std::string at = Path(key) + "[" + std::to_string(i) + "]";
+      bool ok = e.IsScalar();
+      if (ok) {
+        try {
+          out[i] = e.as<double>();
+        } catch (const YAML::Exception&) {
+          ok = false;
+        }
+      }
+      if (!ok) throw ConfigError::At(file_, LineOf(e), at + ": not a number");
+      if (!std::isfinite(out[i])) throw ConfigError::At(file_, LineOf(e), at + ": not finite");
+    }
+    return out;
+  }
+
+  Eigen::Matrix3d Matrix3(const std::string& key) const {
+    const std::vector<double> m = Numbers(key, 9);
+    Eigen::Matrix3d out;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) out(r, c) = m[3 * r + c];
+    }
+    return out;
+  }
+
+  void CheckIntrinsics(const Eigen::Matrix3d& K) const {
+    if (K(1, 0) != 0.0 || K(2, 0) != 0.0 || K(2, 1) != 0.0 || K(2, 2) != 1.0) {
+      throw ConfigError::At(file_, LineOf(Key("K")),
+                            Path("K") + ": must be upper triangular with a last row of 0 0 1");
+    }
+    if (!(K(0, 0) > 0.0) || !(K(1, 1) > 0.0)) {
+      throw ConfigError::At(file_, LineOf(Key("K")),
+                            Path("K") + ": focal lengths K[0] and K[4] must be positive");
+    }
+  }
+
+  void CheckRotation(const Eigen::Matrix3d& R) const {
+    const double err = (R.transpose() * R - Eigen::Matrix3d::Identity()).norm();
+    if (!(err <= kRotationTolerance) || !(R.determinant() > 0.0)) {
+      char buf[160];
+      std::snprintf(buf, sizeof(buf), ": R is not a rotation (|R^T R - I| = %.3g, det R = %.6g)",
+                    err, R.determinant());
+      throw ConfigError::At(file_, LineOf(Key("R")), Path("R") + buf);
+    }
+  }
+
+  const YAML::Node& node_;
+  const std::string& file_;
+  std::string where_;
+  // Key name -> (key node, value node), in document order of first appearance.
+  std::map<std::string, std::pair<YAML::Node, YAML::Node>> keys_;
+};
+
+}  // namespace
+
+CameraModel ParseCamera(const YAML::Node& node, const std::string& file) {
+  return CameraParser(node, file, "").Parse();
+}
+
+std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::string& file) {
+  if (!node.IsSequence() || node.size() == 0) {
+    throw ConfigError::At(file, node.IsDefined() ? LineOf(node) : 0,
+                          "cameras: expected a non-empty list of cameras");
+  }
+  std::vector<CameraModel> cameras;
+  std::map<std::string, int> first_line;  // Camera name -> line of its entry.
+  for (std::size_t i = 0; i < node.size(); ++i) {
+    const YAML::Node entry = node[i];
+    const std::string where = "cameras[" + std::to_string(i) + "]";
+    CameraParser parser(entry, file, where);
+    CameraModel camera = parser.Parse();
+    const int line = parser.name_line();
+    const auto [it, inserted] = first_line.emplace(camera.name, line);
+    if (!inserted) {
+      throw ConfigError::At(file, line,
+                            where + ".name: duplicate camera name '" + camera.name +
+                                "' (first at line " + std::to_string(it->second) + ")");
+    }
+    cameras.push_back(std::move(camera));
+  }
+  return cameras;
+}
+
+std::vector<CameraModel> LoadCamerasFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError::At(path, 0, "cannot open");
+  YAML::Node root;
+  try {
+    root = YAML::Load(in);
+  } catch (const YAML::ParserException& e) {
+    throw ConfigError::At(path, e.mark.line + 1, "malformed YAML: " + e.msg);
+  } catch (const YAML::Exception& e) {
+    throw ConfigError::At(path, e.mark.line + 1, "cannot read YAML: " + e.msg);
+  }
+  if (!root.IsMap()) {
+    throw ConfigError::At(path, root.IsDefined() ? LineOf(root) : 0,
+                          "expected a map with the single key 'cameras'");
+  }
+  YAML::Node cameras;
+  bool found = false;
+  for (const auto& kv : root) {
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string();
+    if (key != "cameras") {
+      throw ConfigError::At(path, LineOf(kv.first), "unknown key '" + key + "'");
+    }
+    if (found) throw ConfigError::At(path, LineOf(kv.first), "duplicate key 'cameras'");
+    found = true;
+    cameras = kv.second;
+  }
+  if (!found) throw ConfigError::At(path, LineOf(root), "missing key 'cameras'");
+  return ParseCameraList(cameras, path);
+}
+
+void WriteCamerasFile(const std::string& path, const std::vector<CameraModel>& cameras) {
+  YAML::Emitter out;
+  // 17 significant digits make every double read back bit for bit.
+  out.SetDoublePrecision(std::numeric_limits<double>::max_digits10);
+  out << YAML::BeginMap << YAML::Key << "cameras" << YAML::Value << YAML::BeginSeq;
+  auto flow = [&out](const auto& values) {
+    out << YAML::Flow << YAML::BeginSeq;
+    for (double v : values) out << v;
+    out << YAML::EndSeq;
+  };
+  for (const CameraModel& c : cameras) {
+    out << YAML::BeginMap;
+    out << YAML::Key << "name" << YAML::Value << c.name;
+    out << YAML::Key << "width" << YAML::Value << c.width;
+    out << YAML::Key << "height" << YAML::Value << c.height;
+    std::vector<double> k;
+    std::vector<double> r;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) {
+        k.push_back(c.K(i, j));
+        r.push_back(c.R_CW(i, j));
+      }
+    }
+    out << YAML::Key << "K" << YAML::Value;
+    flow(k);
+    out << YAML::Key << "distortion" << YAML::Value;
+    flow(c.distortion);
+    out << YAML::Key << "R" << YAML::Value;
+    flow(r);
+    out << YAML::Key << "t" << YAML::Value;
+    flow(std::vector<double>{c.t_CW.x(), c.t_CW.y(), c.t_CW.z()});
+    out << YAML::EndMap;
+  }
+  out << YAML::EndSeq << YAML::EndMap;
+  if (!out.good()) throw ConfigError::At(path, 0, "cannot write: " + out.GetLastError());
+
+  std::ofstream file(path, std::ios::out | std::ios::trunc);
+  file << out.c_str() << '\n';
+  file.close();
+  if (!file) throw ConfigError::At(path, 0, "cannot write");
+}
+
+}  // namespace hg::geometry

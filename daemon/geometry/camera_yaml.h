@@ -1,0 +1,34 @@
+#pragma once
+/// @file
+/// Reading and writing the camera block (the `cameras:` list of a cameras file
+/// or of the daemon config).
+
+#include <string>
+#include <vector>
+
+#include <yaml-cpp/yaml.h>
+
+#include "geometry/camera.h"
+
+namespace hg::geometry {
+
+/// Parses one camera entry: `name`, `width`, `height` and either `K` (9, row-major),
+/// optional `distortion` (k1 k2 p1 p2 k3), `R` (9, world->camera) and `t` (3), or
+/// `P` (12, row-major, any scale). Unknown keys are rejected.
+/// @throws common::ConfigError naming `file`, the line and the key.
+[[nodiscard]] CameraModel ParseCamera(const YAML::Node& node, const std::string& file);
+
+/// Parses a `cameras:` sequence node (every entry, names unique).
+/// @throws common::ConfigError naming `file`, the line and the key.
+[[nodiscard]] std::vector<CameraModel> ParseCameraList(const YAML::Node& node,
+                                                       const std::string& file);
+
+/// Loads a YAML file with a top-level `cameras:` list (and no other key).
+/// @throws common::ConfigError on a missing file, malformed YAML or a bad entry.
+[[nodiscard]] std::vector<CameraModel> LoadCamerasFile(const std::string& path);
+
+/// Writes cameras in the form LoadCamerasFile reads (K, distortion, R, t).
+/// @throws common::ConfigError when the file cannot be written.
+void WriteCamerasFile(const std::string& path, const std::vector<CameraModel>& cameras);
+
+}  // namespace hg::geometry

@@ -1,0 +1,55 @@
+#pragma once
+/// @file
+/// What the octree knows of one camera, and the per-camera verdict on a box.
+
+#include <cstdint>
+#include <vector>
+
+#include "geometry/camera.h"
+#include "geometry/footprint.h"
+#include "geometry/mesh.h"
+#include "geometry/obstacle_depth.h"
+#include "silhouette/quadtree.h"
+
+namespace hg::octree {
+
+/// Static data of one camera for the octree: pinhole projection and the
+/// obstacle depth pyramids. Immutable after construction; thread-safe.
+class CameraView {
+ public:
+  /// `pinhole` must have no distortion (masks are undistorted before the octree).
+  CameraView(const geometry::CameraModel& pinhole,
+             const std::vector<geometry::TriangleMesh>& obstacles);
+
+  [[nodiscard]] const geometry::BoxProjector& projector() const { return projector_; }
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+  [[nodiscard]] bool has_obstacles() const { return has_obstacles_; }
+  [[nodiscard]] const geometry::DepthPyramid& near_min() const { return near_min_; }
+  [[nodiscard]] const geometry::DepthPyramid& centre_max() const { return centre_max_; }
+  [[nodiscard]] const geometry::ObstacleDepthMap& depth_map() const { return depth_map_; }
+
+ private:
+  geometry::BoxProjector projector_;
+  int width_;
+  int height_;
+  bool has_obstacles_ = false;
+  geometry::ObstacleDepthMap depth_map_;
+  geometry::DepthPyramid near_min_;
+  geometry::DepthPyramid centre_max_;
+};
+
+/// One camera's verdict on a box (ARCHITECTURE.md, reconstruction rules).
+enum class Verdict : std::uint8_t {
+  kFree = 0,    ///< Footprint inside the image, all background, box in front of obstacles.
+  kHidden = 1,  ///< The camera sees no part of the box (behind it, outside, behind obstacles).
+  kFull = 2,    ///< Every footprint pixel is foreground or outside the image.
+  kMixed = 3,   ///< Anything else: a smaller box may get another verdict.
+};
+
+/// Classifies the box with footprint `fp` in one camera. `mask == nullptr`
+/// means the camera delivers nothing (lost or stale): it sees nothing.
+[[nodiscard]] Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
+                               const geometry::Footprint& fp);
+
+}  // namespace hg::octree

@@ -1,0 +1,78 @@
+#include "octree/knowledge_filter.h"
+
+#include <numeric>
+#include <unordered_map>
+#include <vector>
+
+namespace hg::octree {
+
+PointState KnowledgeFilterResult::StateAt(const Octree& tree, const Eigen::Vector3d& p_W) const {
+  const auto leaf = tree.LeafAt(p_W);
+  if (!leaf) return PointState::kOutside;
+  if (leaf->second == LeafState::kOccupied && IsDropped(leaf->first)) return PointState::kFree;
+  return tree.StateAt(p_W);
+}
+
+KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volume_m3) {
+  const common::Box3& bounds = tree.config().bounds;
+  std::vector<Cell> cells;
+  tree.ForEachLeaf([&](const Cell& c, LeafState s) {
+    if (s == LeafState::kOccupied) cells.push_back(c);
+  });
+  std::unordered_map<std::uint64_t, int> index;
+  index.reserve(cells.size() * 2);
+  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
+    index.emplace(KnowledgeFilterResult::Key(cells[i]), i);
+  }
+  std::vector<int> parent(cells.size());
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[i] != i) i = parent[i] = parent[parent[i]];
+    return i;
+  };
+  // Probe the 26 neighbour directions just outside each leaf, at the middle of
+  // the face, edge or corner. A touching leaf of the same or a coarser level
+  // always holds that probe (octree cells are aligned), and a finer touching
+  // leaf finds this one from its own side, so every touching pair is joined.
+  const double eps = 1e-6 * (bounds.max - bounds.min).minCoeff() / (1 << tree.config().depth);
+  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
+    const common::Box3 box = CellBox(bounds, cells[i]);
+    const Eigen::Vector3d mid = 0.5 * (box.min + box.max);
+    for (int d = 0; d < 27; ++d) {
+      const int dx = d % 3 - 1, dy = (d / 3) % 3 - 1, dz = d / 9 - 1;
+      if (dx == 0 && dy == 0 && dz == 0) continue;
+      Eigen::Vector3d p = mid;
+      const int dir[3] = {dx, dy, dz};
+      for (int a = 0; a < 3; ++a) {
+        if (dir[a] < 0) p[a] = box.min[a] - eps;
+        if (dir[a] > 0) p[a] = box.max[a] + eps;
+      }
+      const auto leaf = tree.LeafAt(p);
+      if (!leaf || leaf->second != LeafState::kOccupied) continue;
+      const auto it = index.find(KnowledgeFilterResult::Key(leaf->first));
+      if (it == index.end()) continue;
+      parent[find(i)] = find(it->second);
+    }
+  }
+  std::vector<double> volume(cells.size(), 0.0);
+  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
+    volume[find(i)] += CellBox(bounds, cells[i]).Volume();
+  }
+  KnowledgeFilterResult result;
+  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
+    if (find(i) != i) continue;
+    ++result.components;
+    if (volume[i] < min_volume_m3) {
+      ++result.dropped_components;
+      result.dropped_volume_m3 += volume[i];
+    }
+  }
+  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
+    if (volume[find(i)] < min_volume_m3) {
+      result.dropped_.insert(KnowledgeFilterResult::Key(cells[i]));
+    }
+  }
+  return result;
+}
+
+}  // namespace hg::octree

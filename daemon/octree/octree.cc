@@ -1,0 +1,378 @@
+#include "octree/octree.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/check.h"
+
+namespace hg::octree {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr int kNumRoots = 512;
+
+inline Verdict GetVerdict(std::uint32_t verdicts, int camera) {
+  return static_cast<Verdict>((verdicts >> (2 * camera)) & 3u);
+}
+inline std::uint32_t SetVerdict(std::uint32_t verdicts, int camera, Verdict v) {
+  const std::uint32_t shift = 2 * camera;
+  return (verdicts & ~(3u << shift)) | (static_cast<std::uint32_t>(v) << shift);
+}
+
+}  // namespace
+
+const char* ToString(PointState s) {
+  switch (s) {
+    case PointState::kFree:
+      return "free";
+    case PointState::kOccupied:
+      return "occupied";
+    case PointState::kOccluded:
+      return "occluded";
+    case PointState::kOutside:
+      return "outside";
+  }
+  return "?";
+}
+
+common::Box3 CellBox(const common::Box3& bounds, const Cell& cell) {
+  const double scale = std::ldexp(1.0, -cell.level);  // Exact power of two.
+  const Eigen::Vector3d extent = bounds.max - bounds.min;
+  auto at = [&](int axis, std::uint32_t i) {
+    // The last cell ends exactly at the bound, whatever the rounding.
+    if ((static_cast<std::uint64_t>(i) << 0) == (1ULL << cell.level)) return bounds.max[axis];
+    return bounds.min[axis] + extent[axis] * (static_cast<double>(i) * scale);
+  };
+  common::Box3 b;
+  b.min = {at(0, cell.x), at(1, cell.y), at(2, cell.z)};
+  b.max = {at(0, cell.x + 1), at(1, cell.y + 1), at(2, cell.z + 1)};
+  return b;
+}
+
+/// One update pass: the per-worker traversal of roots.
+class Octree::Updater {
+ public:
+  Updater(Octree& tree, std::span<const silhouette::SilhouetteQuadtree* const> masks,
+          std::uint32_t all_changed, const UpdateControl& control)
+      : tree_(tree), masks_(masks), all_changed_(all_changed), control_(control) {}
+
+  /// Per-worker counters, summed after the pass.
+  struct Counters {
+    std::int64_t visited = 0;
+    std::int64_t verdicts = 0;
+    std::int64_t pending = 0;
+    int clock_countdown = 0;
+  };
+
+  void UpdateRoot(int r, Counters& counters) {
+    RootPool& pool = tree_.roots_[r];
+    const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
+                    static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
+    Visit(pool, 0, cell, false, counters);
+  }
+
+  bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
+
+ private:
+  bool CheckAbort(Counters& k) {
+    if (aborted_.load(std::memory_order_relaxed)) return true;
+    bool stop = control_.abort != nullptr && control_.abort->load(std::memory_order_relaxed);
+    if (!stop && control_.node_budget >= 0) {
+      stop = spent_.fetch_add(1, std::memory_order_relaxed) >= control_.node_budget;
+    }
+    if (!stop && control_.deadline && --k.clock_countdown <= 0) {
+      k.clock_countdown = 32;
+      stop = Clock::now() >= *control_.deadline;
+    }
+    if (stop) aborted_.store(true, std::memory_order_relaxed);
+    return stop;
+  }
+
+  geometry::Footprint FootprintOf(int c, const common::Box3& box) const {
+    return tree_.cameras_[c].projector().Project(box.min, box.max);
+  }
+
+  bool ChangedIn(int c, const geometry::Footprint& fp) const {
+    if ((all_changed_ >> c) & 1u) return true;
+    const silhouette::SilhouetteQuadtree* m = masks_[c];
+    if (m == nullptr) return false;  // Still lost: its verdict (hidden) cannot change.
+    if (fp.side != geometry::Footprint::Side::kInFront) return false;  // Verdict is geometric.
+    const CameraView& view = tree_.cameras_[c];
+    const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
+    return !clip.Empty() && m->AnyChanged(clip);
+  }
+
+  void FreeChildren(RootPool& pool, std::uint32_t first) {
+    for (std::uint32_t i = 0; i < 8; ++i) {
+      const std::uint32_t grandchildren = pool.nodes[first + i].children;
+      if (grandchildren != Node::kNoChildren) FreeChildren(pool, grandchildren);
+    }
+    pool.free_blocks.push_back(first);
+  }
+
+  std::uint32_t AllocateChildren(RootPool& pool) {
+    std::uint32_t first;
+    if (!pool.free_blocks.empty()) {
+      first = pool.free_blocks.back();
+      pool.free_blocks.pop_back();
+    } else {
+      first = static_cast<std::uint32_t>(pool.nodes.size());
+      pool.nodes.resize(pool.nodes.size() + 8);
+    }
+    for (std::uint32_t i = 0; i < 8; ++i) pool.nodes[first + i] = Node{};
+    return first;
+  }
+
+  void MakeLeaf(RootPool& pool, std::uint32_t index, NodeState state) {
+    Node& n = pool.nodes[index];
+    if (n.children != Node::kNoChildren) {
+      const std::uint32_t first = n.children;
+      n.children = Node::kNoChildren;
+      FreeChildren(pool, first);
+    }
+    Node& m = pool.nodes[index];
+    m.state = state;
+    m.flags = 0;
+  }
+
+  void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force, Counters& k) {
+    const int num_cameras = static_cast<int>(tree_.cameras_.size());
+    const common::Box3 box = CellBox(tree_.config_.bounds, cell);
+    ++k.visited;
+    Node node = pool.nodes[index];  // Copy: the pool may grow below.
+    const bool recompute_all = force || (node.flags & kPending) != 0;
+
+    // Fast path: a free leaf stays free while one camera that certified it sees
+    // no change in its footprint.
+    if (!recompute_all && node.state == kFreeLeaf && (node.flags & kHasPending) == 0) {
+      for (int c = 0; c < num_cameras; ++c) {
+        if (((node.valid >> c) & 1u) == 0 || GetVerdict(node.verdicts, c) != Verdict::kFree) {
+          continue;
+        }
+        if (!ChangedIn(c, FootprintOf(c, box))) {
+          // Other cameras were not checked for changes: their caches may be stale.
+          pool.nodes[index].valid = static_cast<std::uint16_t>(1u << c);
+          return;
+        }
+      }
+    }
+
+    geometry::Footprint fps[kMaxCameras];
+    std::uint32_t recompute = 0;
+    for (int c = 0; c < num_cameras; ++c) {
+      fps[c] = FootprintOf(c, box);
+      if (recompute_all || ((node.valid >> c) & 1u) == 0 || ChangedIn(c, fps[c])) {
+        recompute |= 1u << c;
+      }
+    }
+    if (!recompute_all && recompute == 0 && (node.flags & kHasPending) == 0) {
+      return;  // Subtree still exact.
+    }
+    if (CheckAbort(k)) {
+      pool.nodes[index].flags |= kPending;
+      ++k.pending;
+      return;
+    }
+
+    // Evaluate the cameras to recompute; one free verdict settles the node.
+    bool any_free = false;
+    for (int c = 0; c < num_cameras && !any_free; ++c) {
+      any_free = ((node.valid >> c) & 1u) != 0 && ((recompute >> c) & 1u) == 0 &&
+                 GetVerdict(node.verdicts, c) == Verdict::kFree;
+    }
+    for (int c = 0; c < num_cameras && !any_free; ++c) {
+      if (((recompute >> c) & 1u) == 0) continue;
+      const Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c]);
+      ++k.verdicts;
+      node.verdicts = SetVerdict(node.verdicts, c, v);
+      node.valid |= static_cast<std::uint16_t>(1u << c);
+      recompute &= ~(1u << c);
+      any_free = v == Verdict::kFree;
+    }
+    // Cameras left unevaluated (a free verdict came first) are stale now.
+    node.valid &= static_cast<std::uint16_t>(~recompute);
+
+    bool all_hidden = true;
+    bool any_mixed = false;
+    for (int c = 0; c < num_cameras && !any_free; ++c) {
+      const Verdict v = GetVerdict(node.verdicts, c);
+      all_hidden = all_hidden && v == Verdict::kHidden;
+      any_mixed = any_mixed || v == Verdict::kMixed;
+    }
+    {
+      Node& n = pool.nodes[index];
+      n.verdicts = node.verdicts;
+      n.valid = node.valid;
+    }
+    if (any_free) return MakeLeaf(pool, index, kFreeLeaf);
+    if (num_cameras == 0 || all_hidden) return MakeLeaf(pool, index, kOccludedLeaf);
+    if (!any_mixed || cell.level >= tree_.config_.depth) {
+      return MakeLeaf(pool, index, kOccupiedLeaf);
+    }
+
+    // Mixed: split. Children of a pending node, or new children, are stale.
+    bool child_force = recompute_all;
+    std::uint32_t first = node.children;
+    if (first == Node::kNoChildren) {
+      first = AllocateChildren(pool);
+      child_force = true;
+    }
+    {
+      Node& n = pool.nodes[index];
+      n.children = first;
+      n.state = kInner;
+      n.flags = 0;
+    }
+    std::uint8_t below = 0;
+    for (std::uint32_t i = 0; i < 8; ++i) {
+      const Cell child{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
+                       2 * cell.z + ((i >> 2) & 1)};
+      Visit(pool, first + i, child, child_force, k);
+      below |= pool.nodes[first + i].flags;
+    }
+    if (below != 0) pool.nodes[index].flags = kHasPending;
+  }
+
+  Octree& tree_;
+  std::span<const silhouette::SilhouetteQuadtree* const> masks_;
+  std::uint32_t all_changed_;
+  const UpdateControl& control_;
+  std::atomic<bool> aborted_{false};
+  std::atomic<std::int64_t> spent_{0};
+};
+
+Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
+    : config_(config), cameras_(std::move(cameras)) {
+  HG_CHECK(config_.bounds.IsValid());
+  HG_CHECK(config_.depth >= kRootLevel && config_.depth <= 20);
+  HG_CHECK(config_.num_threads >= 1);
+  HG_CHECK(static_cast<int>(cameras_.size()) <= kMaxCameras);
+  roots_.resize(kNumRoots);
+  Reset();
+  pool_ = std::make_unique<common::WorkerPool>(config_.num_threads);
+  last_version_.assign(cameras_.size(), 0);
+  last_mask_.assign(cameras_.size(), nullptr);
+}
+
+Octree::~Octree() = default;
+
+void Octree::Reset() {
+  for (RootPool& pool : roots_) {
+    pool.nodes.clear();
+    pool.free_blocks.clear();
+    Node root;
+    root.state = kOccupiedLeaf;
+    root.flags = kPending;
+    pool.nodes.push_back(root);
+  }
+}
+
+UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const> masks,
+                           const UpdateControl& control) {
+  HG_CHECK(masks.size() == cameras_.size());
+  const auto start = Clock::now();
+  std::uint32_t all_changed = 0;
+  for (std::size_t c = 0; c < masks.size(); ++c) {
+    const silhouette::SilhouetteQuadtree* m = masks[c];
+    if (m != nullptr) {
+      HG_CHECK(m->width() == cameras_[c].width() && m->height() == cameras_[c].height());
+    }
+    const bool continuous = m == last_mask_[c] &&
+                            (m == nullptr ? last_version_[c] == 0
+                                          : m->version() == last_version_[c] + 1);
+    if (!continuous) all_changed |= 1u << c;
+    last_mask_[c] = m;
+    last_version_[c] = m == nullptr ? 0 : m->version();
+  }
+
+  Updater shared(*this, masks, all_changed, control);
+  struct alignas(64) PaddedCounters {
+    Updater::Counters counters;
+  };
+  PaddedCounters counters[64];
+  HG_CHECK(pool_->num_threads() <= 64);
+  // Roots are independent: whichever worker takes a root owns its pool for the pass.
+  auto run = [&](int r, int worker) { shared.UpdateRoot(r, counters[worker].counters); };
+  pool_->Run(kNumRoots, run);
+
+  UpdateStats stats;
+  stats.aborted = shared.aborted();
+  for (int w = 0; w < pool_->num_threads(); ++w) {
+    stats.nodes_visited += counters[w].counters.visited;
+    stats.verdicts_computed += counters[w].counters.verdicts;
+    stats.nodes_pending += counters[w].counters.pending;
+  }
+  stats.update_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+  return stats;
+}
+
+PointState Octree::StateAt(const Eigen::Vector3d& p_W) const {
+  const auto leaf = LeafAt(p_W);
+  if (!leaf) return PointState::kOutside;
+  switch (leaf->second) {
+    case LeafState::kFree:
+      return PointState::kFree;
+    case LeafState::kOccluded:
+      return PointState::kOccluded;
+    case LeafState::kOccupied:
+      break;
+  }
+  return PointState::kOccupied;
+}
+
+std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& p_W) const {
+  const common::Box3& b = config_.bounds;
+  if (!b.Contains(p_W)) return std::nullopt;
+  const Eigen::Vector3d rel = (p_W - b.min).cwiseQuotient(b.max - b.min);
+  auto root_index = [](double t) {
+    return static_cast<std::uint32_t>(std::clamp(std::floor(t * 8.0), 0.0, 7.0));
+  };
+  Cell cell{kRootLevel, root_index(rel.x()), root_index(rel.y()), root_index(rel.z())};
+  // Rounding may put a point on a root face into the neighbour: fix by the box.
+  for (int axis = 0; axis < 3; ++axis) {
+    std::uint32_t& i = axis == 0 ? cell.x : axis == 1 ? cell.y : cell.z;
+    const common::Box3 box = CellBox(b, cell);
+    if (p_W[axis] < box.min[axis] && i > 0) --i;
+    else if (p_W[axis] > box.max[axis] && i < 7) ++i;
+  }
+  const RootPool& pool = roots_[cell.x + 8 * cell.y + 64 * cell.z];
+  std::uint32_t index = 0;
+  for (;;) {
+    const Node& n = pool.nodes[index];
+    if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
+    if (n.state != kInner) return std::make_pair(cell, static_cast<LeafState>(n.state));
+    // Pick the child whose box holds the point, by the same arithmetic as CellBox.
+    const Cell upper{cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1};
+    const common::Box3 ub = CellBox(b, upper);
+    const std::uint32_t dx = p_W.x() >= ub.min.x() ? 1 : 0;
+    const std::uint32_t dy = p_W.y() >= ub.min.y() ? 1 : 0;
+    const std::uint32_t dz = p_W.z() >= ub.min.z() ? 1 : 0;
+    cell = {cell.level + 1, 2 * cell.x + dx, 2 * cell.y + dy, 2 * cell.z + dz};
+    index = n.children + dx + 2 * dy + 4 * dz;
+  }
+}
+
+double Octree::Volume(LeafState state) const {
+  double volume = 0.0;
+  ForEachLeaf([&](const Cell& cell, LeafState s) {
+    if (s == state) volume += CellBox(config_.bounds, cell).Volume();
+  });
+  return volume;
+}
+
+std::int64_t Octree::NumNodes() const {
+  std::int64_t n = 0;
+  for (const RootPool& pool : roots_) {
+    n += static_cast<std::int64_t>(pool.nodes.size()) -
+         8 * static_cast<std::int64_t>(pool.free_blocks.size());
+  }
+  return n;
+}
+
+std::int64_t Octree::NumLeaves() const {
+  std::int64_t n = 0;
+  ForEachLeaf([&](const Cell&, LeafState) { ++n; });
+  return n;
+}
+
+}  // namespace hg::octree

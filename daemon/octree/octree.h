@@ -1,0 +1,180 @@
+#pragma once
+/// @file
+/// The incremental conservative octree over 8x8x8 parallel roots.
+
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <span>
+#include <vector>
+
+#include "common/box.h"
+#include "common/worker_pool.h"
+#include "octree/camera_view.h"
+#include "silhouette/quadtree.h"
+
+namespace hg::octree {
+
+/// Octree settings. Plain struct with defaults in line.
+struct OctreeConfig {
+  common::Box3 bounds;  ///< Surveillance volume (m).
+  int depth = 10;       ///< Finest cells are bounds / 2^depth; depth 3 is the 8x8x8 roots.
+  int num_threads = 1;  ///< Worker threads for the update (the caller's thread included).
+};
+
+/// State of a leaf.
+enum class LeafState : std::uint8_t {
+  kFree = 0,      ///< Certified free by some camera.
+  kOccupied = 1,  ///< May hold an object (full or mixed at the finest level, or pending).
+  kOccluded = 2,  ///< No camera sees it (occupied, but kept apart).
+};
+
+/// State of a point.
+enum class PointState : std::uint8_t { kFree, kOccupied, kOccluded, kOutside };
+
+[[nodiscard]] const char* ToString(PointState s);
+
+/// A cell of the octree grid at `level` (2^level cells per axis over the bounds).
+struct Cell {
+  int level = 0;
+  std::uint32_t x = 0, y = 0, z = 0;
+  friend bool operator==(const Cell&, const Cell&) = default;
+};
+
+/// The box of a cell. Adjacent cells share bit-identical faces, and a child's box
+/// is computed the same way at every level, so a dense grid at the finest level
+/// reproduces octree leaves exactly.
+[[nodiscard]] common::Box3 CellBox(const common::Box3& bounds, const Cell& cell);
+
+/// When to give up on an update.
+struct UpdateControl {
+  const std::atomic<bool>* abort = nullptr;  ///< Raised by another thread: stop now.
+  std::optional<std::chrono::steady_clock::time_point> deadline;
+  /// Abort once this many nodes were recomputed (negative: no limit). Lets tests
+  /// abort at reproducible moments; with several threads the count is shared.
+  std::int64_t node_budget = -1;
+};
+
+/// What an update did.
+struct UpdateStats {
+  bool aborted = false;
+  std::int64_t nodes_visited = 0;      ///< Nodes whose footprints were computed.
+  std::int64_t verdicts_computed = 0;  ///< Camera verdicts evaluated (quadtree queries).
+  std::int64_t nodes_pending = 0;      ///< Nodes left marked for the next update (abort).
+  double update_ms = 0.0;
+};
+
+/// Conservative incremental octree (ARCHITECTURE.md, reconstruction rules).
+///
+/// The volume is split into 512 roots; each root owns its node pool, and during
+/// an update each root belongs to exactly one worker, so pools are never shared
+/// between threads and the result is the same for any thread count. A node keeps
+/// its cached per-camera verdicts; an update revisits only nodes whose footprint
+/// holds a changed quadtree element in some camera (or that are pending from an
+/// aborted update). On abort, every node that needed an update and did not get
+/// it is marked pending: it reads as occupied until a later update recomputes
+/// it and its whole subtree.
+///
+/// Thread-compatible: Update() and the queries must not run concurrently.
+class Octree {
+ public:
+  static constexpr int kMaxCameras = 16;
+  static constexpr int kRootLevel = 3;
+
+  Octree(const OctreeConfig& config, std::vector<CameraView> cameras);
+  ~Octree();
+  Octree(const Octree&) = delete;
+  Octree& operator=(const Octree&) = delete;
+
+  /// Updates from the newest quadtree of every camera (same order as the views).
+  /// nullptr marks a camera that delivers nothing (lost or stale): it sees nothing.
+  /// A quadtree whose version is not the successor of the one used last time
+  /// counts as changed everywhere.
+  UpdateStats Update(std::span<const silhouette::SilhouetteQuadtree* const> masks,
+                     const UpdateControl& control = {});
+
+  /// Drops every node: the next update builds from scratch.
+  void Reset();
+
+  [[nodiscard]] PointState StateAt(const Eigen::Vector3d& p_W) const;
+
+  /// The leaf holding p_W (a pending node counts as an occupied leaf); nullopt
+  /// outside the bounds.
+  [[nodiscard]] std::optional<std::pair<Cell, LeafState>> LeafAt(const Eigen::Vector3d& p_W) const;
+
+  /// Calls fn(const Cell&, LeafState) for every leaf (pending nodes count as
+  /// occupied leaves), roots in x-fastest order, children in index order.
+  template <class Fn>
+  void ForEachLeaf(Fn&& fn) const;
+
+  /// Volume (m^3) of the leaves in the given state.
+  [[nodiscard]] double Volume(LeafState state) const;
+  [[nodiscard]] std::int64_t NumNodes() const;
+  [[nodiscard]] std::int64_t NumLeaves() const;
+
+  [[nodiscard]] const OctreeConfig& config() const { return config_; }
+  [[nodiscard]] int num_cameras() const { return static_cast<int>(cameras_.size()); }
+  [[nodiscard]] const CameraView& camera(int i) const { return cameras_[i]; }
+
+ private:
+  struct Node {
+    static constexpr std::uint32_t kNoChildren = 0xFFFFFFFFu;
+    std::uint32_t children = kNoChildren;  // First of 8 consecutive nodes in the pool.
+    std::uint32_t verdicts = 0;            // 2 bits per camera.
+    std::uint16_t valid = 0;               // Cameras whose cached verdict is current.
+    std::uint8_t state = 0;                // NodeState.
+    std::uint8_t flags = 0;                // kPending | kHasPending.
+  };
+  enum NodeState : std::uint8_t { kFreeLeaf = 0, kOccupiedLeaf = 1, kOccludedLeaf = 2, kInner = 3 };
+  static constexpr std::uint8_t kPending = 1;
+  static constexpr std::uint8_t kHasPending = 2;
+
+  /// Nodes of one root: nodes[0] is the root, blocks of 8 children follow.
+  struct RootPool {
+    std::vector<Node> nodes;
+    std::vector<std::uint32_t> free_blocks;
+  };
+  class Updater;
+
+  template <class Fn>
+  void VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& cell, Fn& fn) const;
+
+  OctreeConfig config_;
+  std::vector<CameraView> cameras_;
+  std::vector<RootPool> roots_;  // 512, x fastest.
+  std::unique_ptr<common::WorkerPool> pool_;
+  // Per camera: version of the quadtree used last; 0 = none (lost or never seen).
+  std::vector<std::uint64_t> last_version_;
+  std::vector<const silhouette::SilhouetteQuadtree*> last_mask_;
+};
+
+template <class Fn>
+void Octree::VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& cell,
+                         Fn& fn) const {
+  const Node& n = pool.nodes[index];
+  if ((n.flags & kPending) != 0) {
+    fn(cell, LeafState::kOccupied);
+    return;
+  }
+  if (n.state != kInner) {
+    fn(cell, static_cast<LeafState>(n.state));
+    return;
+  }
+  for (std::uint32_t i = 0; i < 8; ++i) {
+    const Cell child{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
+                     2 * cell.z + ((i >> 2) & 1)};
+    VisitLeaves(pool, n.children + i, child, fn);
+  }
+}
+
+template <class Fn>
+void Octree::ForEachLeaf(Fn&& fn) const {
+  for (std::uint32_t r = 0; r < roots_.size(); ++r) {
+    const Cell root{kRootLevel, r & 7, (r >> 3) & 7, r >> 6};
+    VisitLeaves(roots_[r], 0, root, fn);
+  }
+}
+
+}  // namespace hg::octree

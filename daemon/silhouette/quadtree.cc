@@ -1,0 +1,205 @@
+#include "silhouette/quadtree.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include <emmintrin.h>
+
+#include "common/check.h"
+
+namespace hg::silhouette {
+namespace {
+
+constexpr std::uint64_t kByteRepeat = 0x0101010101010101ULL;
+
+// Bits of a tile covered by columns [c0, c1] and rows [r0, r1] (0..7, inclusive).
+inline std::uint64_t TileMask(int c0, int c1, int r0, int r1) {
+  const std::uint64_t cols = ((1ULL << (c1 - c0 + 1)) - 1) << c0;
+  const int rows = r1 - r0 + 1;
+  const std::uint64_t row_sel = (rows == 8 ? ~0ULL : ((1ULL << (8 * rows)) - 1)) << (8 * r0);
+  return (cols * kByteRepeat) & row_sel;
+}
+
+inline std::uint8_t CoverOf(std::uint64_t word, std::uint64_t valid) {
+  const std::uint64_t fg = word & valid;
+  return static_cast<std::uint8_t>((fg != 0 ? 2 : 0) | (fg != valid ? 1 : 0));
+}
+
+}  // namespace
+
+SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
+    : width_(width), height_(height), tiles_w_((width + 7) / 8), tiles_h_((height + 7) / 8) {
+  HG_CHECK(width > 0 && height > 0);
+  const std::size_t tiles = static_cast<std::size_t>(tiles_w_) * tiles_h_;
+  words_.assign(tiles, 0);
+  changed_.assign(tiles, 0);
+  valid_.assign(tiles, 0);
+  for (int ty = 0; ty < tiles_h_; ++ty) {
+    for (int tx = 0; tx < tiles_w_; ++tx) {
+      valid_[ty * tiles_w_ + tx] =
+          TileMask(0, std::min(7, width_ - 1 - tx * 8), 0, std::min(7, height_ - 1 - ty * 8));
+    }
+  }
+  int w = tiles_w_;
+  int h = tiles_h_;
+  int shift = 0;
+  for (;;) {
+    levels_.push_back(Level{w, h, shift, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h)});
+    if (w == 1 && h == 1) break;
+    w = (w + 1) / 2;
+    h = (h + 1) / 2;
+    ++shift;
+  }
+  MarkAllChanged();
+}
+
+void SilhouetteQuadtree::Build(const common::ImageViewU8& mask, std::uint8_t threshold) {
+  HG_CHECK(mask.width == width_ && mask.height == height_);
+  const bool first = version_ == 0;
+  ++version_;
+  // x > threshold for unsigned bytes, as a signed compare after flipping the top bit.
+  const __m128i bias = _mm_set1_epi8(static_cast<char>(0x80));
+  const __m128i thr = _mm_set1_epi8(static_cast<char>(threshold ^ 0x80));
+  const int full_chunks = width_ / 16;
+  for (int ty = 0; ty < tiles_h_; ++ty) {
+    std::uint64_t* row_words = words_.data() + static_cast<std::size_t>(ty) * tiles_w_;
+    std::uint64_t* row_changed = changed_.data() + static_cast<std::size_t>(ty) * tiles_w_;
+    const std::uint64_t* row_valid = valid_.data() + static_cast<std::size_t>(ty) * tiles_w_;
+    // The new words are assembled into changed_ first, then swapped with the old.
+    std::memset(row_changed, 0, sizeof(std::uint64_t) * tiles_w_);
+    const int rows = std::min(8, height_ - ty * 8);
+    for (int r = 0; r < rows; ++r) {
+      const std::uint8_t* px = mask.Row(ty * 8 + r);
+      const int shift = 8 * r;
+      int chunk = 0;
+      for (; chunk < full_chunks; ++chunk) {
+        const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(px + chunk * 16));
+        const int bits = _mm_movemask_epi8(_mm_cmpgt_epi8(_mm_xor_si128(v, bias), thr));
+        row_changed[2 * chunk] |= static_cast<std::uint64_t>(bits & 0xFF) << shift;
+        row_changed[2 * chunk + 1] |= static_cast<std::uint64_t>((bits >> 8) & 0xFF) << shift;
+      }
+      for (int u = chunk * 16; u < width_; ++u) {
+        if (px[u] > threshold) row_changed[u >> 3] |= 1ULL << (shift + (u & 7));
+      }
+    }
+    std::uint8_t* cells = levels_[0].cells.data() + static_cast<std::size_t>(ty) * tiles_w_;
+    for (int tx = 0; tx < tiles_w_; ++tx) {
+      const std::uint64_t fresh = row_changed[tx];
+      const std::uint64_t diff = first ? row_valid[tx] : (fresh ^ row_words[tx]);
+      row_words[tx] = fresh;
+      row_changed[tx] = diff;
+      cells[tx] = static_cast<std::uint8_t>(CoverOf(fresh, row_valid[tx]) |
+                                            (diff != 0 ? kChangedBit : 0));
+    }
+  }
+  BuildCoarseLevels();
+}
+
+void SilhouetteQuadtree::MarkAllChanged() {
+  for (std::size_t t = 0; t < words_.size(); ++t) {
+    changed_[t] = valid_[t];
+    levels_[0].cells[t] = static_cast<std::uint8_t>(CoverOf(words_[t], valid_[t]) | kChangedBit);
+  }
+  BuildCoarseLevels();
+}
+
+void SilhouetteQuadtree::BuildCoarseLevels() {
+  for (std::size_t k = 1; k < levels_.size(); ++k) {
+    const Level& fine = levels_[k - 1];
+    Level& coarse = levels_[k];
+    for (int y = 0; y < coarse.height; ++y) {
+      const int fy0 = 2 * y;
+      const bool has_fy1 = fy0 + 1 < fine.height;
+      const std::uint8_t* r0 = fine.cells.data() + static_cast<std::size_t>(fy0) * fine.width;
+      const std::uint8_t* r1 = has_fy1 ? r0 + fine.width : nullptr;
+      std::uint8_t* out = coarse.cells.data() + static_cast<std::size_t>(y) * coarse.width;
+      for (int x = 0; x < coarse.width; ++x) {
+        const int fx0 = 2 * x;
+        const bool has_fx1 = fx0 + 1 < fine.width;
+        std::uint8_t c = r0[fx0];
+        if (has_fx1) c |= r0[fx0 + 1];
+        if (r1 != nullptr) {
+          c |= r1[fx0];
+          if (has_fx1) c |= r1[fx0 + 1];
+        }
+        out[x] = c;
+      }
+    }
+  }
+}
+
+template <bool kChanged>
+std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect,
+                                         std::uint8_t goal) const {
+  struct Item {
+    int level, x, y;
+  };
+  // Each level pushes at most 4 siblings on top of what is pending: 4 per level suffices.
+  Item stack[4 * 32];
+  int sp = 0;
+  stack[sp++] = {static_cast<int>(levels_.size()) - 1, 0, 0};
+  std::uint8_t acc = 0;
+  while (sp > 0) {
+    const Item it = stack[--sp];
+    const Level& lv = levels_[it.level];
+    const int side = 8 << lv.shift;
+    const int ex0 = it.x * side;
+    const int ey0 = it.y * side;
+    const int ex1 = ex0 + side - 1;
+    const int ey1 = ey0 + side - 1;
+    if (ex0 > rect.u1 || ey0 > rect.v1 || ex1 < rect.u0 || ey1 < rect.v0) continue;
+    const std::uint8_t cell = lv.cells[static_cast<std::size_t>(it.y) * lv.width + it.x];
+    const bool inside = ex0 >= rect.u0 && ey0 >= rect.v0 && ex1 <= rect.u1 && ey1 <= rect.v1;
+    if constexpr (kChanged) {
+      if ((cell & kChangedBit) == 0) continue;
+      if (inside) return goal;
+    } else {
+      const std::uint8_t cover = cell & 3;
+      if (cover != 3 || inside) {
+        acc |= cover;
+        if (acc == goal) return acc;
+        continue;
+      }
+    }
+    if (it.level == 0) {
+      const std::size_t t = static_cast<std::size_t>(it.y) * tiles_w_ + it.x;
+      const std::uint64_t m = TileMask(std::max(rect.u0, ex0) - ex0, std::min(rect.u1, ex1) - ex0,
+                                       std::max(rect.v0, ey0) - ey0, std::min(rect.v1, ey1) - ey0);
+      if constexpr (kChanged) {
+        if ((changed_[t] & m) != 0) return goal;
+      } else {
+        const std::uint64_t w = words_[t];
+        if ((w & m) != 0) acc |= 2;
+        if ((~w & m) != 0) acc |= 1;
+        if (acc == goal) return acc;
+      }
+      continue;
+    }
+    const Level& fine = levels_[it.level - 1];
+    const int cx = 2 * it.x;
+    const int cy = 2 * it.y;
+    for (int dy = 1; dy >= 0; --dy) {
+      for (int dx = 1; dx >= 0; --dx) {
+        if (cx + dx < fine.width && cy + dy < fine.height) {
+          stack[sp++] = {it.level - 1, cx + dx, cy + dy};
+        }
+      }
+    }
+  }
+  return acc;
+}
+
+Cover SilhouetteQuadtree::Query(const geometry::PixelRect& rect) const {
+  return static_cast<Cover>(Descend<false>(rect, 3));
+}
+
+bool SilhouetteQuadtree::AnyChanged(const geometry::PixelRect& rect) const {
+  return Descend<true>(rect, 1) != 0;
+}
+
+bool SilhouetteQuadtree::IsForeground(int u, int v) const {
+  const std::size_t t = static_cast<std::size_t>(v >> 3) * tiles_w_ + (u >> 3);
+  return ((words_[t] >> ((v & 7) * 8 + (u & 7))) & 1) != 0;
+}
+
+}  // namespace hg::silhouette

@@ -1,0 +1,79 @@
+#pragma once
+/// @file
+/// Silhouette quadtree: per element of every level, whether it holds background,
+/// foreground or both, and whether any pixel flipped since the previous mask.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/image.h"
+#include "geometry/camera.h"
+
+namespace hg::silhouette {
+
+/// What a set of pixels holds. Bit 0: some background pixel; bit 1: some foreground pixel.
+enum class Cover : std::uint8_t { kNone = 0, kBackground = 1, kForeground = 2, kMixed = 3 };
+
+/// Quadtree over a binary silhouette of one camera.
+///
+/// The finest level holds 8x8-pixel tiles as 64-bit words (bit r*8+c is pixel
+/// (8tx+c, 8ty+r)); every coarser level halves the tile grid. Each element
+/// stores its Cover and a changed flag (some pixel differs from the mask of the
+/// previous Build()). Queries are exact at pixel level and stop as soon as the
+/// answer is known.
+///
+/// Thread-compatible: Build() must not run concurrently with anything else;
+/// const queries may run concurrently. Build() does not allocate.
+class SilhouetteQuadtree {
+ public:
+  SilhouetteQuadtree(int width, int height);
+
+  /// Rebuilds from a grey mask (foreground iff value > threshold). Changed flags
+  /// are relative to the previously built mask; the first build marks every
+  /// pixel changed. Precondition: mask size equals the tree's size.
+  void Build(const common::ImageViewU8& mask, std::uint8_t threshold);
+
+  /// Marks every element changed (for a consumer that missed a version).
+  void MarkAllChanged();
+
+  /// Cover of the pixels of `rect`. Precondition: rect is non-empty and inside the image.
+  [[nodiscard]] Cover Query(const geometry::PixelRect& rect) const;
+
+  /// True iff some pixel of `rect` changed in the last Build().
+  /// Precondition: rect is non-empty and inside the image.
+  [[nodiscard]] bool AnyChanged(const geometry::PixelRect& rect) const;
+
+  /// True iff pixel (u, v) is foreground.
+  [[nodiscard]] bool IsForeground(int u, int v) const;
+
+  /// Number of Build() calls so far.
+  [[nodiscard]] std::uint64_t version() const { return version_; }
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+  [[nodiscard]] int num_levels() const { return static_cast<int>(levels_.size()); }
+
+ private:
+  struct Level {
+    int width = 0;   // Elements per row.
+    int height = 0;  // Element rows.
+    int shift = 0;   // Element side in pixels is 8 << shift.
+    std::vector<std::uint8_t> cells;  // Cover bits | kChangedBit.
+  };
+  static constexpr std::uint8_t kChangedBit = 4;
+
+  template <bool kChanged>
+  [[nodiscard]] std::uint8_t Descend(const geometry::PixelRect& rect, std::uint8_t goal) const;
+  void BuildCoarseLevels();
+
+  int width_;
+  int height_;
+  int tiles_w_;
+  int tiles_h_;
+  std::uint64_t version_ = 0;
+  std::vector<std::uint64_t> words_;      // Foreground bits per tile.
+  std::vector<std::uint64_t> changed_;    // Changed bits per tile.
+  std::vector<std::uint64_t> valid_;      // Bits inside the image per tile.
+  std::vector<Level> levels_;             // levels_[0]: tiles; last: 1x1.
+};
+
+}  // namespace hg::silhouette

@@ -1,0 +1,43 @@
+#pragma once
+/// @file
+/// Conservative undistortion of silhouette masks.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/image.h"
+#include "geometry/camera.h"
+
+namespace hg::silhouette {
+
+/// Maps a mask taken through a distorting lens to the ideal pinhole image of the
+/// same camera (same K and size), conservatively: an output pixel is foreground
+/// when any source pixel that any point of the output pixel may come from is
+/// foreground, and also when part of that region lies outside the source image
+/// (the camera cannot certify what it does not see).
+///
+/// Built once per camera (not cheap); Apply() does not allocate when `out` already
+/// has the right size. Thread-compatible: Apply() is const and may run concurrently
+/// on different outputs.
+class ConservativeUndistorter {
+ public:
+  explicit ConservativeUndistorter(const geometry::CameraModel& camera);
+
+  /// `in` is the distorted grey mask (foreground iff value > threshold); `out`
+  /// receives 255 for foreground and 0 for background.
+  void Apply(const common::ImageViewU8& in, std::uint8_t threshold, common::ImageU8* out) const;
+
+  [[nodiscard]] int width() const { return width_; }
+  [[nodiscard]] int height() const { return height_; }
+
+ private:
+  struct SourceRect {
+    std::uint16_t u0, v0, u1, v1;  // Inclusive source pixel rectangle.
+  };
+  static constexpr std::uint16_t kOutside = 0xFFFF;  // u0 == kOutside: region leaves the image.
+  int width_ = 0;
+  int height_ = 0;
+  std::vector<SourceRect> rects_;  // One per output pixel.
+};
+
+}  // namespace hg::silhouette

@@ -1,0 +1,37 @@
+// Quadtree build from a Full HD mask, changed flags included, against the cost
+// of merely reading the mask.
+#include <benchmark/benchmark.h>
+
+#include "bench/bench_scene.h"
+#include "silhouette/quadtree.h"
+
+namespace hg::bench {
+namespace {
+
+void BM_ReadMask(benchmark::State& state) {
+  const BenchScene& s = GetBenchScene(1, 2);
+  const common::ImageU8& m = s.frames[0][0];
+  for (auto _ : state) {
+    std::uint64_t count = 0;
+    for (const std::uint8_t px : m.pixels) count += px > 127;
+    benchmark::DoNotOptimize(count);
+  }
+  state.SetBytesProcessed(state.iterations() * static_cast<std::int64_t>(m.pixels.size()));
+}
+BENCHMARK(BM_ReadMask)->Unit(benchmark::kMillisecond);
+
+void BM_QuadtreeBuild1080p(benchmark::State& state) {
+  const BenchScene& s = GetBenchScene(1, 2);
+  silhouette::SilhouetteQuadtree tree(1920, 1080);
+  int i = 0;
+  for (auto _ : state) {
+    // Alternate two consecutive frames so that changed flags are real work.
+    tree.Build(s.frames[i++ & 1][0].View(), 127);
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(state.iterations() * 1920 * 1080);
+}
+BENCHMARK(BM_QuadtreeBuild1080p)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace hg::bench

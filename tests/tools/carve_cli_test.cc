@@ -1,0 +1,162 @@
+// End-to-end tests of `hullguard carve`: real files, real process, exit codes.
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "geometry/camera_yaml.h"
+#include "scene/exact_mask.h"
+#include "silhouette/mask_io.h"
+#include "support/random_scene.h"
+
+namespace hg {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ProcessResult {
+  int code = -1;
+  std::string out;
+  std::string err;
+};
+
+ProcessResult Hullguard(const std::string& args) {
+  static int counter = 0;
+  const fs::path dir = fs::temp_directory_path() / ("hg_cli_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const fs::path out = dir / ("out" + std::to_string(counter));
+  const fs::path err = dir / ("err" + std::to_string(counter++));
+  const std::string cmd = std::string(HG_HULLGUARD_BIN) + " " + args + " >" + out.string() +
+                          " 2>" + err.string();
+  const int status = std::system(cmd.c_str());
+  ProcessResult r;
+  r.code = WEXITSTATUS(status);
+  std::stringstream so, se;
+  so << std::ifstream(out).rdbuf();
+  se << std::ifstream(err).rdbuf();
+  r.out = so.str();
+  r.err = se.str();
+  return r;
+}
+
+class CarveCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("hg_carve_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    testing::RandomSceneOptions opt;
+    opt.num_cameras = 4;
+    opt.num_objects = 2;
+    scene_ = testing::MakeRandomScene(99, opt);
+    geometry::WriteCamerasFile(Path("cams.yaml"), scene_.cameras);
+    const auto masks = testing::RenderMasks(scene_.cameras, scene_.objects);
+    for (std::size_t i = 0; i < masks.size(); ++i) {
+      silhouette::WriteGreyImage(Path("m" + std::to_string(i) + ".png"), masks[i]);
+    }
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  std::string Masks() const {
+    std::string s;
+    for (std::size_t i = 0; i < scene_.cameras.size(); ++i) s += " " + Path("m" + std::to_string(i) + ".png");
+    return s;
+  }
+  std::string Base() const {
+    return "carve --cameras " + Path("cams.yaml") + " --masks" + Masks() +
+           " --bounds 0 0 0 2 2 2 --depth 6";
+  }
+  fs::path dir_;
+  testing::RandomScene scene_;
+};
+
+TEST_F(CarveCliTest, QueryClassifiesPointsInOrder) {
+  std::ofstream q(Path("q.txt"));
+  const auto* sphere_or_other = &scene_.objects[0];
+  Eigen::Vector3d inside = std::visit(
+      [](const auto& s) -> Eigen::Vector3d {
+        using T = std::decay_t<decltype(s)>;
+        if constexpr (std::is_same_v<T, scene::Capsule>) return s.a_W;
+        else return s.centre_W;
+      },
+      *sphere_or_other);
+  q << inside.x() << " " << inside.y() << " " << inside.z() << "\n";
+  q << "# a comment\n5 5 5\n0.001 0.001 1.999\n";
+  q.close();
+  const ProcessResult r = Hullguard(Base() + " --query " + Path("q.txt"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::istringstream lines(r.out);
+  std::string l1, l2, l3;
+  std::getline(lines, l1);
+  std::getline(lines, l2);
+  std::getline(lines, l3);
+  EXPECT_NE(l1.find("occupied"), std::string::npos) << l1;
+  EXPECT_EQ(l2, "5 5 5 outside");
+  EXPECT_TRUE(l3.find(" free") != std::string::npos || l3.find(" occupied") != std::string::npos ||
+              l3.find(" occluded") != std::string::npos)
+      << l3;
+}
+
+TEST_F(CarveCliTest, JsonAndPly) {
+  const ProcessResult r = Hullguard(Base() + " --threads 2 --json --out " + Path("hull.ply"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* key : {"\"occupied_volume_m3\"", "\"leaves\"", "\"nodes\"", "\"update_ms\""}) {
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+  }
+  std::ifstream ply(Path("hull.ply"));
+  std::string magic;
+  ply >> magic;
+  EXPECT_EQ(magic, "ply");
+  EXPECT_GT(fs::file_size(Path("hull.ply")), 100u);
+}
+
+TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
+  struct Case {
+    std::string args;
+    std::string expect;  // Must appear in stderr.
+  };
+  std::ofstream(Path("bad.yaml")) << "cameras:\n  - name: a\n    width: 10\n    height: 10\n"
+                                     "    K: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n    R: [1,0,0,0,1,0,0,0,1]\n"
+                                     "    t: [0, 0, 0]\n    colour: red\n";
+  std::ofstream(Path("broken.yaml")) << "cameras: [ {name: a, width: 3\n";
+  std::ofstream(Path("rank.yaml")) << "cameras:\n  - name: a\n    width: 160\n    height: 120\n"
+                                      "    P: [1, 0, 0, 0, 2, 0, 0, 0, 0, 0, 0, 1]\n";
+  silhouette::WriteGreyImage(Path("small.png"), common::ImageU8(10, 10));
+  std::ofstream(Path("q.txt")) << "1 2\n";
+  const std::string cams = " --cameras " + Path("cams.yaml");
+  const std::vector<Case> cases = {
+      {"carve --cameras " + Path("missing.yaml") + " --masks" + Masks() +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "missing.yaml"},
+      {"carve" + cams + " --masks " + Path("small.png") + Masks().substr(Masks().find(' ', 1)) +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "small.png"},
+      {"carve --cameras " + Path("bad.yaml") + " --masks " + Path("m0.png") +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "colour"},
+      {"carve --cameras " + Path("broken.yaml") + " --masks " + Path("m0.png") +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "broken.yaml"},
+      {"carve --cameras " + Path("rank.yaml") + " --masks " + Path("m0.png") +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "rank"},
+      {Base() + " --query " + Path("q.txt"), "q.txt:1"},
+      {Base() + " --obstacles " + Path("none.obj"), "none.obj"},
+      {"carve" + cams + " --masks " + Path("m0.png") + " --bounds 0 0 0 2 2 2 --depth 6", "masks"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 2 2 --depth 6", "bounds"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 -2 2 2 --depth 6", "bounds"},
+  };
+  for (const Case& c : cases) {
+    const ProcessResult r = Hullguard(c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_NE(r.err.find(c.expect), std::string::npos) << "stderr: " << r.err;
+    EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  }
+}
+
+}  // namespace
+}  // namespace hg

@@ -1,0 +1,48 @@
+#pragma once
+/// @file
+/// One-shot carving of a set of masks, shared by `hullguard carve` and `hullguard demo`.
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "common/box.h"
+#include "common/image.h"
+#include "geometry/camera.h"
+#include "geometry/mesh.h"
+#include "octree/octree.h"
+#include "silhouette/quadtree.h"
+
+namespace hg::tools {
+
+struct CarveJob {
+  std::vector<geometry::CameraModel> cameras;  ///< As calibrated (may have distortion).
+  std::vector<common::ImageU8> masks;          ///< One per camera, camera-sized.
+  common::Box3 bounds;
+  int depth = 8;
+  int threads = 1;
+  std::uint8_t threshold = 127;  ///< Foreground iff grey value > threshold.
+  std::vector<geometry::TriangleMesh> obstacles;
+};
+
+struct CarveResult {
+  std::vector<silhouette::SilhouetteQuadtree> quadtrees;
+  std::unique_ptr<octree::Octree> tree;
+  octree::UpdateStats stats;
+  double undistort_ms = 0.0;
+  double quadtree_ms = 0.0;
+  double setup_ms = 0.0;  ///< Camera views and obstacle depth maps.
+};
+
+/// Undistorts masks conservatively where needed, builds the quadtrees and the
+/// octree from scratch. Preconditions (checked by the callers that read input):
+/// masks match cameras in number and size, bounds valid, 3 <= depth <= 16.
+[[nodiscard]] CarveResult Carve(const CarveJob& job);
+
+/// Writes a PNG with a top view (x right, y up) and a side view (x right, z up)
+/// of the tree: occupied leaves shaded by height, occluded grey, free white,
+/// cameras as blue dots, obstacles outlined.
+void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::CameraModel>& cameras,
+                   const std::vector<geometry::TriangleMesh>& obstacles, const std::string& path);
+
+}  // namespace hg::tools

@@ -1,0 +1,18 @@
+#pragma once
+/// @file
+/// Subcommands of the `hullguard` tool. Each registers itself on the app and
+/// runs from its callback; bad input throws common::ConfigError (exit code 2).
+
+#include <CLI/CLI.hpp>
+
+namespace hg::tools {
+
+/// Exit codes shared by the subcommands.
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;
+inline constexpr int kExitBadInput = 2;
+
+void RegisterCarve(CLI::App& app, int* exit_code);
+void RegisterDemo(CLI::App& app, int* exit_code);
+
+}  // namespace hg::tools

@@ -1,0 +1,31 @@
+// hullguard: command-line tool over the hullguard libraries.
+#include <cstdio>
+#include <exception>
+
+#include "common/config_error.h"
+#include "hullguard/commands.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"hullguard: conservative multi-camera reconstruction tools"};
+  app.require_subcommand(1);
+  int exit_code = hg::tools::kExitOk;
+  hg::tools::RegisterCarve(app, &exit_code);
+  hg::tools::RegisterDemo(app, &exit_code);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "hullguard: %s\n", e.what());
+    return hg::tools::kExitBadInput;
+  } catch (const hg::common::ConfigError& e) {
+    std::fprintf(stderr, "hullguard: %s\n", e.what());
+    return hg::tools::kExitBadInput;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "hullguard: error: %s\n", e.what());
+    return hg::tools::kExitFailure;
+  }
+  return exit_code;
+}

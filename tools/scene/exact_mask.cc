@@ -1,0 +1,491 @@
+#include "scene/exact_mask.h"
+
+#include <algorithm>
+#include <array>
+#include <bit>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <optional>
+
+#include <Eigen/LU>
+
+#include "common/check.h"
+
+namespace hg::scene {
+namespace {
+
+using Eigen::Matrix2d;
+using Eigen::Matrix3d;
+using Eigen::Vector2d;
+using Eigen::Vector3d;
+
+// Gap, relative to the size of the scene seen by one pixel, that a separating
+// plane must clear before a pixel is called background. Anything closer counts
+// as touching, so the tolerance only ever adds foreground.
+constexpr double kRelativeTolerance = 1e-9;
+// GJK stops refining once its upper and lower distance bounds agree this well.
+constexpr double kGjkRelativeConvergence = 1e-6;
+// GJK gives up (and reports "touching", the conservative answer) after this.
+constexpr int kGjkMaxIterations = 96;
+// A barycentric weight this far below zero still counts as inside a face; it
+// only affects how fast GJK converges, never what it certifies.
+constexpr double kBarycentricSlack = 1e-12;
+// Boundary samples per pixel edge when undistorting a pixel square.
+constexpr int kSamplesPerEdge = 16;
+// Newton undistortion: residual target and iteration cap.
+constexpr double kUndistortResidual = 1e-12;
+constexpr int kUndistortMaxIterations = 60;
+// Slack added to the polygon margin for the Newton residual: a residual of
+// 1e-12 in distorted coordinates moves the solution by 1e-12 * |J^-1|, far
+// below this for any lens whose Jacobian is not nearly singular.
+constexpr double kUndistortSlack = 1e-9;
+
+/// A shape seen from the camera frame C.
+class ShapeInCamera {
+ public:
+  ShapeInCamera(const Shape& shape, const geometry::CameraModel& camera)
+      : shape_(shape), R_CW_(camera.R_CW), t_CW_(camera.t_CW) {}
+
+  [[nodiscard]] Vector3d Support(const Vector3d& d_C) const {
+    return R_CW_ * scene::Support(shape_, R_CW_.transpose() * d_C) + t_CW_;
+  }
+  [[nodiscard]] Vector3d ToCamera(const Vector3d& p_W) const { return R_CW_ * p_W + t_CW_; }
+
+ private:
+  const Shape& shape_;
+  Matrix3d R_CW_;
+  Vector3d t_CW_;
+};
+
+/// Truncated viewing pyramid: the camera centre (origin of C) and the far
+/// cross-section far * (x_i, y_i, 1) over a convex polygon of normalised
+/// image coordinates. Support is the best of its vertices.
+class Pyramid {
+ public:
+  void Set(const std::vector<Vector2d>& polygon_xy, double far) {
+    polygon_ = &polygon_xy;
+    far_ = far;
+  }
+
+  [[nodiscard]] Vector3d Support(const Vector3d& d) const {
+    double best = 0.0;  // The apex, at the origin.
+    const Vector2d* best_xy = nullptr;
+    for (const Vector2d& xy : *polygon_) {
+      const double s = d.x() * xy.x() + d.y() * xy.y() + d.z();
+      if (s * far_ > best) {
+        best = s * far_;
+        best_xy = &xy;
+      }
+    }
+    if (best_xy == nullptr) return Vector3d::Zero();
+    return far_ * Vector3d(best_xy->x(), best_xy->y(), 1.0);
+  }
+
+ private:
+  const std::vector<Vector2d>* polygon_ = nullptr;
+  double far_ = 1.0;
+};
+
+/// Up to four points of the Minkowski difference A - B.
+struct Simplex {
+  std::array<Vector3d, 4> p;
+  int n = 0;
+};
+
+// Closest point to the origin of the convex hull of the simplex. Tries every
+// face (vertex, edge, triangle, tetrahedron): the closest point lies in the
+// relative interior of one of them, where its affine projection has
+// non-negative weights, and every such candidate lies in the hull, so the
+// shortest valid candidate is the answer. The simplex shrinks to that face.
+Vector3d ClosestPointAndReduce(Simplex* simplex) {
+  const int n = simplex->n;
+  double best_norm2 = std::numeric_limits<double>::infinity();
+  Vector3d best_v = simplex->p[0];
+  unsigned best_mask = 1;
+  for (int k = 1; k <= n; ++k) {
+    for (unsigned mask = 1; mask < (1u << n); ++mask) {
+      if (std::popcount(mask) != k) continue;
+      std::array<int, 4> idx{};
+      int count = 0;
+      for (int i = 0; i < n; ++i) {
+        if (mask & (1u << i)) idx[count++] = i;
+      }
+      const Vector3d& q0 = simplex->p[idx[0]];
+      Vector3d v = q0;
+      if (k > 1) {
+        const int m = k - 1;
+        Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 3> e(3, m);
+        for (int j = 0; j < m; ++j) e.col(j) = simplex->p[idx[j + 1]] - q0;
+        const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3> gram =
+            e.transpose() * e;
+        const double det = gram.determinant();
+        const double diag_product = gram.diagonal().prod();
+        if (!(det > 1e-14 * diag_product)) continue;  // Degenerate face: a sub-face covers it.
+        const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1> mu =
+            gram.partialPivLu().solve(-(e.transpose() * q0));
+        if ((mu.array() < -kBarycentricSlack).any() || 1.0 - mu.sum() < -kBarycentricSlack) {
+          continue;
+        }
+        v = q0 + e * mu;
+      }
+      const double norm2 = v.squaredNorm();
+      if (norm2 < best_norm2) {
+        best_norm2 = norm2;
+        best_v = v;
+        best_mask = mask;
+      }
+    }
+  }
+  int kept = 0;
+  for (int i = 0; i < n; ++i) {
+    if (best_mask & (1u << i)) simplex->p[kept++] = simplex->p[i];
+  }
+  simplex->n = kept;
+  return best_v;
+}
+
+// True only when a plane provably separates convex sets A and B with a gap
+// larger than `tol`: for the final direction v and w = support of A - B
+// towards -v, every point x of A - B has v.x >= v.w > tol |v|. Every other
+// outcome (touching, convergence near tol, iteration cap, degeneracy) returns
+// false, so numerical trouble can only add foreground. `hint` carries the last
+// separating direction between neighbouring pixels, which usually certifies
+// the next pixel at the cost of one support call.
+template <class SetA, class SetB>
+bool CertifiedSeparated(const SetA& a, const SetB& b, double tol, Vector3d* hint) {
+  const auto support = [&](const Vector3d& v) -> Vector3d {
+    return a.Support(-v) - b.Support(v);
+  };
+  Vector3d w = support(*hint);
+  if (hint->squaredNorm() > 0.0 && hint->dot(w) > tol * hint->norm()) return true;
+
+  Simplex simplex;
+  simplex.p[0] = w;
+  simplex.n = 1;
+  Vector3d v = w;
+  for (int iter = 0; iter < kGjkMaxIterations; ++iter) {
+    const double vv = v.squaredNorm();
+    if (vv <= tol * tol) return false;
+    w = support(v);
+    const double vw = v.dot(w);
+    if (vw > tol * std::sqrt(vv)) {
+      *hint = v;
+      return true;
+    }
+    if (vv - vw <= kGjkRelativeConvergence * vv) return false;
+    for (int i = 0; i < simplex.n; ++i) {
+      if (simplex.p[i] == w) return false;  // No progress possible.
+    }
+    simplex.p[simplex.n++] = w;
+    v = ClosestPointAndReduce(&simplex);
+    if (simplex.n == 4) return false;  // The origin lies inside the tetrahedron.
+  }
+  return false;
+}
+
+// Distortion of normalised coordinates, OpenCV k1 k2 p1 p2 k3, with its Jacobian.
+Vector2d Distort(const std::array<double, 5>& k, const Vector2d& xy, Matrix2d* jacobian) {
+  const double x = xy.x();
+  const double y = xy.y();
+  const double r2 = x * x + y * y;
+  const double radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
+  const double d_radial = k[0] + r2 * (2.0 * k[1] + 3.0 * r2 * k[4]);  // d radial / d r2
+  const double p1 = k[2];
+  const double p2 = k[3];
+  if (jacobian != nullptr) {
+    (*jacobian)(0, 0) = radial + 2.0 * x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x;
+    (*jacobian)(0, 1) = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y;
+    (*jacobian)(1, 0) = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y;
+    (*jacobian)(1, 1) = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x;
+  }
+  return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
+          y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
+}
+
+// Solves Distort(x) = xd by damped Newton from the value in *x. Fails (false)
+// without convergence or where the Jacobian is not positive, i.e. outside the
+// branch on which the lens model is a one-to-one map.
+bool Undistort(const std::array<double, 5>& k, const Vector2d& xd, Vector2d* x) {
+  const double target = kUndistortResidual * std::max(1.0, xd.norm());
+  Matrix2d jacobian;
+  Vector2d residual = Distort(k, *x, &jacobian) - xd;
+  double residual_norm = residual.norm();
+  for (int iter = 0; iter < kUndistortMaxIterations; ++iter) {
+    const double det = jacobian.determinant();
+    if (!(det > 0.0)) return false;
+    if (residual_norm <= target) return x->allFinite();
+    const Vector2d step = jacobian.inverse() * residual;
+    double t = 1.0;
+    for (;;) {
+      const Vector2d candidate = *x - t * step;
+      Matrix2d candidate_jacobian;
+      const Vector2d candidate_residual = Distort(k, candidate, &candidate_jacobian) - xd;
+      const double candidate_norm = candidate_residual.norm();
+      if (candidate_norm < residual_norm) {
+        *x = candidate;
+        jacobian = candidate_jacobian;
+        residual = candidate_residual;
+        residual_norm = candidate_norm;
+        break;
+      }
+      t *= 0.5;
+      if (t < 1e-6) return false;
+    }
+  }
+  return false;
+}
+
+double Cross(const Vector2d& o, const Vector2d& a, const Vector2d& b) {
+  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+}
+
+// Convex hull (Andrew's monotone chain), counter-clockwise, into *hull.
+void ConvexHull(std::vector<Vector2d>* points, std::vector<Vector2d>* hull) {
+  std::sort(points->begin(), points->end(), [](const Vector2d& a, const Vector2d& b) {
+    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
+  });
+  hull->clear();
+  const std::size_t n = points->size();
+  if (n < 3) {
+    *hull = *points;
+    return;
+  }
+  hull->resize(2 * n);
+  std::size_t k = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    while (k >= 2 && Cross((*hull)[k - 2], (*hull)[k - 1], (*points)[i]) <= 0.0) --k;
+    (*hull)[k++] = (*points)[i];
+  }
+  for (std::size_t i = n - 1, lower = k + 1; i-- > 0;) {
+    while (k >= lower && Cross((*hull)[k - 2], (*hull)[k - 1], (*points)[i]) <= 0.0) --k;
+    (*hull)[k++] = (*points)[i];
+  }
+  hull->resize(k - 1);
+}
+
+/// Inclusive pixel range examined for one shape.
+struct PixelRange {
+  int u0 = 0;
+  int v0 = 0;
+  int u1 = -1;
+  int v1 = -1;
+};
+
+// Normalised-coordinate box holding the projection of every point of the
+// shape's bounding box; nullopt when some corner is not clearly in front of the
+// camera (then the projection is unbounded). The bounding box is convex and in
+// front, so its projection is the convex hull of its corners' projections.
+std::optional<Eigen::AlignedBox2d> NormalisedBounds(const ShapeInCamera& shape_C,
+                                                    const common::Box3& bounds_W) {
+  Eigen::AlignedBox2d box;
+  for (int i = 0; i < 8; ++i) {
+    const Vector3d p_C = shape_C.ToCamera(bounds_W.Corner(i));
+    if (!(p_C.z() > 1e-9 * p_C.norm())) return std::nullopt;
+    box.extend(Vector2d(p_C.x() / p_C.z(), p_C.y() / p_C.z()));
+  }
+  return box;
+}
+
+// Pixels whose closed square may meet the projection of the shape's bounding
+// box, grown by one pixel against rounding; the whole image when the box
+// reaches behind the camera.
+PixelRange CandidatePixels(const ShapeInCamera& shape_C, const common::Box3& bounds_W,
+                           const Matrix3d& K, int width, int height) {
+  PixelRange all{0, 0, width - 1, height - 1};
+  const std::optional<Eigen::AlignedBox2d> box = NormalisedBounds(shape_C, bounds_W);
+  if (!box) return all;
+  double u_min = std::numeric_limits<double>::infinity();
+  double v_min = u_min;
+  double u_max = -u_min;
+  double v_max = -u_min;
+  for (int i = 0; i < 4; ++i) {
+    const Vector2d xy = box->corner(static_cast<Eigen::AlignedBox2d::CornerType>(i));
+    const Vector3d uvw = K * Vector3d(xy.x(), xy.y(), 1.0);
+    const double u = uvw.x() / uvw.z();
+    const double v = uvw.y() / uvw.z();
+    u_min = std::min(u_min, u);
+    u_max = std::max(u_max, u);
+    v_min = std::min(v_min, v);
+    v_max = std::max(v_max, v);
+  }
+  if (!std::isfinite(u_min + u_max + v_min + v_max)) return all;
+  // Pixel u's closed square [u-0.5, u+0.5] meets [u_min, u_max] iff
+  // ceil(u_min-0.5) <= u <= floor(u_max+0.5).
+  const auto clamp_to = [](double x, int hi) {
+    return static_cast<int>(std::clamp(x, -1.0, static_cast<double>(hi) + 1.0));
+  };
+  PixelRange range;
+  range.u0 = std::max(0, clamp_to(std::ceil(u_min - 0.5) - 1.0, width));
+  range.u1 = std::min(width - 1, clamp_to(std::floor(u_max + 0.5) + 1.0, width));
+  range.v0 = std::max(0, clamp_to(std::ceil(v_min - 0.5) - 1.0, height));
+  range.v1 = std::min(height - 1, clamp_to(std::floor(v_max + 0.5) + 1.0, height));
+  return range;
+}
+
+// Per-shape data shared by both renderers.
+struct ShapeView {
+  ShapeInCamera in_camera;
+  common::Box3 bounds_W;
+  double far = 0.0;          // Beyond every point of the shape, > 0.
+  double extent = 0.0;       // Size scale of the shape as seen from C (m).
+  bool in_front = false;     // Some point has z > 0.
+};
+
+ShapeView MakeShapeView(const Shape& shape, const geometry::CameraModel& camera) {
+  ShapeView view{ShapeInCamera(shape, camera), Bounds(shape), 0.0, 0.0, false};
+  const double z_max = view.in_camera.Support(Vector3d::UnitZ()).z();
+  view.in_front = z_max > 0.0;
+  view.far = 1.25 * z_max;
+  const Vector3d centre_C = view.in_camera.ToCamera(0.5 * (view.bounds_W.min + view.bounds_W.max));
+  view.extent = centre_C.norm() + view.bounds_W.Size().norm();
+  return view;
+}
+
+// Separation tolerance for a pyramid whose far polygon reaches normalised
+// radius `max_xy`: relative to the largest coordinates in the GJK problem.
+double Tolerance(const ShapeView& view, double max_xy) {
+  return kRelativeTolerance * (view.far * (1.0 + max_xy) + view.extent);
+}
+
+double MaxAbsCoordinate(const std::vector<Vector2d>& polygon) {
+  double m = 0.0;
+  for (const Vector2d& xy : polygon) m = std::max(m, xy.cwiseAbs().maxCoeff());
+  return m;
+}
+
+Vector2d Normalised(const Matrix3d& K_inv, double u, double v) {
+  const Vector3d ray = K_inv * Vector3d(u, v, 1.0);
+  return {ray.x() / ray.z(), ray.y() / ray.z()};
+}
+
+bool AllZero(const std::array<double, 5>& k) {
+  return std::all_of(k.begin(), k.end(), [](double c) { return c == 0.0; });
+}
+
+}  // namespace
+
+common::ImageU8 RenderExactMask(const geometry::CameraModel& pinhole,
+                                const std::vector<Shape>& shapes) {
+  HG_CHECK(pinhole.width >= 0 && pinhole.height >= 0);
+  common::ImageU8 mask(pinhole.width, pinhole.height, 0);
+  const Matrix3d K_inv = pinhole.K.inverse();
+  std::vector<Vector2d> square(4);
+  Pyramid pyramid;
+  for (const Shape& shape : shapes) {
+    const ShapeView view = MakeShapeView(shape, pinhole);
+    if (!view.in_front) continue;  // Nothing of it lies in front of the camera.
+    const PixelRange range =
+        CandidatePixels(view.in_camera, view.bounds_W, pinhole.K, pinhole.width, pinhole.height);
+    Vector3d row_hint = Vector3d::Zero();
+    for (int v = range.v0; v <= range.v1; ++v) {
+      Vector3d hint = row_hint;
+      for (int u = range.u0; u <= range.u1; ++u) {
+        if (mask.At(u, v) != 0) continue;
+        // Pixel corners in normalised coordinates (a parallelogram for any K).
+        square[0] = Normalised(K_inv, u - 0.5, v - 0.5);
+        square[1] = Normalised(K_inv, u + 0.5, v - 0.5);
+        square[2] = Normalised(K_inv, u + 0.5, v + 0.5);
+        square[3] = Normalised(K_inv, u - 0.5, v + 0.5);
+        pyramid.Set(square, view.far);
+        const double tol = Tolerance(view, MaxAbsCoordinate(square));
+        if (!CertifiedSeparated(pyramid, view.in_camera, tol, &hint)) mask.At(u, v) = 255;
+        if (u == range.u0) row_hint = hint;
+      }
+    }
+  }
+  return mask;
+}
+
+common::ImageU8 RenderExactDistortedMask(const geometry::CameraModel& camera,
+                                         const std::vector<Shape>& shapes) {
+  if (AllZero(camera.distortion)) return RenderExactMask(camera, shapes);
+  HG_CHECK(camera.width >= 0 && camera.height >= 0);
+  common::ImageU8 mask(camera.width, camera.height, 0);
+  const Matrix3d K_inv = camera.K.inverse();
+  const std::array<double, 5>& k = camera.distortion;
+
+  std::vector<ShapeView> views;
+  std::vector<std::optional<Eigen::AlignedBox2d>> normalised_bounds;
+  for (const Shape& shape : shapes) {
+    ShapeView view = MakeShapeView(shape, camera);
+    if (!view.in_front) continue;
+    normalised_bounds.push_back(NormalisedBounds(view.in_camera, view.bounds_W));
+    views.push_back(std::move(view));
+  }
+  if (views.empty()) return mask;
+  std::vector<Vector3d> hints(views.size(), Vector3d::Zero());
+
+  // The rays through a distorted pixel are the undistorted image U(S) of its
+  // square S. U(S) is bounded by the curve U(boundary of S); we sample that
+  // curve, take the hull, and grow it by a margin that covers the curve between
+  // samples. Between consecutive samples p, q (chord c) the curve has some
+  // length L; every point x on it has |x-p| + |x-q| <= L, so it lies within
+  // sqrt(L^2 - c^2) / 2 of the chord. At 16 samples per edge a sub-arc spans
+  // 1/16 pixel, over which a lens's inverse map is near affine (L ~ c); even
+  // L <= 2c gives a deviation below (sqrt(3)/2) c, so a margin of the largest
+  // chord over-covers. Growing by a circumscribed octagon per hull vertex keeps
+  // the polygon a superset of hull + disk(margin). The result holds U(S), so
+  // the mask can only gain pixels.
+  std::vector<Vector2d> samples;
+  std::vector<Vector2d> hull;
+  std::vector<Vector2d> grown;
+  std::vector<Vector2d> polygon;
+  samples.reserve(4 * kSamplesPerEdge);
+  const double octagon_radius = 1.0 / std::cos(std::numbers::pi / 8.0);
+  Pyramid pyramid;
+  for (int v = 0; v < camera.height; ++v) {
+    for (int u = 0; u < camera.width; ++u) {
+      const std::array<Vector2d, 4> corners{Vector2d(u - 0.5, v - 0.5), Vector2d(u + 0.5, v - 0.5),
+                                            Vector2d(u + 0.5, v + 0.5), Vector2d(u - 0.5, v + 0.5)};
+      samples.clear();
+      bool inverted = true;
+      Vector2d x = Normalised(K_inv, corners[0].x(), corners[0].y());
+      for (int edge = 0; edge < 4 && inverted; ++edge) {
+        const Vector2d& from = corners[edge];
+        const Vector2d& to = corners[(edge + 1) % 4];
+        for (int j = 0; j < kSamplesPerEdge && inverted; ++j) {
+          const Vector2d uv = from + (to - from) * (static_cast<double>(j) / kSamplesPerEdge);
+          inverted = Undistort(k, Normalised(K_inv, uv.x(), uv.y()), &x);
+          samples.push_back(x);
+        }
+      }
+      if (!inverted) {
+        // The lens model cannot be inverted here: the camera cannot certify
+        // this pixel as background.
+        mask.At(u, v) = 255;
+        continue;
+      }
+      double margin = 0.0;
+      for (std::size_t i = 0; i < samples.size(); ++i) {
+        margin = std::max(margin, (samples[(i + 1) % samples.size()] - samples[i]).norm());
+      }
+      margin += kUndistortSlack;
+      ConvexHull(&samples, &hull);
+      grown.clear();
+      for (const Vector2d& p : hull) {
+        for (int i = 0; i < 8; ++i) {
+          const double angle = (i + 0.5) * std::numbers::pi / 4.0;
+          grown.push_back(p + margin * octagon_radius * Vector2d(std::cos(angle), std::sin(angle)));
+        }
+      }
+      ConvexHull(&grown, &polygon);
+      Eigen::AlignedBox2d polygon_box;
+      for (const Vector2d& p : polygon) polygon_box.extend(p);
+      const double max_xy = MaxAbsCoordinate(polygon);
+
+      for (std::size_t s = 0; s < views.size(); ++s) {
+        if (normalised_bounds[s] && !normalised_bounds[s]->intersects(polygon_box)) continue;
+        pyramid.Set(polygon, views[s].far);
+        const double tol = Tolerance(views[s], max_xy);
+        if (!CertifiedSeparated(pyramid, views[s].in_camera, tol, &hints[s])) {
+          mask.At(u, v) = 255;
+          break;
+        }
+      }
+    }
+  }
+  return mask;
+}
+
+}  // namespace hg::scene
