@@ -11,7 +11,9 @@ namespace hg::geometry {
 
 bool CameraModel::HasDistortion() const {
   for (double c : distortion) {
-    if (c != 0.0) return true;
+    if (c != 0.0) {
+      return true;
+    }
   }
   return false;
 }
@@ -38,7 +40,9 @@ Eigen::Vector2d CameraModel::DistortNormalized(const Eigen::Vector2d& xy) const 
 
 std::optional<Eigen::Vector2d> CameraModel::Project(const Eigen::Vector3d& p_W) const {
   const Eigen::Vector3d p_C = ToCamera(p_W);
-  if (!(p_C.z() > 0.0)) return std::nullopt;
+  if (!(p_C.z() > 0.0)) {
+    return std::nullopt;
+  }
   const Eigen::Vector2d d = DistortNormalized(p_C.head<2>() / p_C.z());
   const Eigen::Vector3d uvw = K * Eigen::Vector3d(d.x(), d.y(), 1.0);
   return Eigen::Vector2d(uvw.head<2>() / uvw.z());
@@ -60,17 +64,23 @@ Eigen::Matrix<double, 3, 4> CameraModel::ProjectionMatrix() const {
 std::optional<DecomposeResult> DecomposeProjection(const Eigen::Matrix<double, 3, 4>& P,
                                                    std::string* error) {
   auto fail = [error](const char* message) -> std::optional<DecomposeResult> {
-    if (error != nullptr) *error = message;
+    if (error != nullptr) {
+      *error = message;
+    }
     return std::nullopt;
   };
-  if (!P.allFinite()) return fail("P has non-finite entries");
+  if (!P.allFinite()) {
+    return fail("P has non-finite entries");
+  }
 
   Eigen::Matrix<double, 3, 4> Ps = P;
   Eigen::Matrix3d M = Ps.leftCols<3>();
   // Rank test relative to the largest singular value, so that the overall scale of P
   // (which is arbitrary) does not matter.
   const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(M).singularValues();
-  if (!(sv(0) > 0.0) || sv(2) < 1e-9 * sv(0)) return fail("P has rank < 3");
+  if (!(sv(0) > 0.0) || sv(2) < 1e-9 * sv(0)) {
+    return fail("P has rank < 3");
+  }
 
   // K has a positive diagonal and R is proper, so det(K R) > 0: a negative
   // determinant means P carries a negative overall scale.

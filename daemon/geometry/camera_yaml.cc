@@ -44,8 +44,9 @@ class CameraParser {
                                                  "R",    "t",     "P",      "distortion"};
     for (const auto& kv : node_) {
       const int line = LineOf(kv.first);
-      if (!kv.first.IsScalar())
+      if (!kv.first.IsScalar()) {
         throw ConfigError::At(file_, line, Prefix() + "keys must be strings");
+      }
       const std::string key = kv.first.Scalar();
       if (kKnown.count(key) == 0) {
         throw ConfigError::At(file_, line, Prefix() + "unknown key '" + key + "'");
@@ -67,23 +68,31 @@ class CameraParser {
     }
     if (Has("distortion")) {
       const std::vector<double> d = Numbers("distortion", 5);
-      for (int i = 0; i < 5; ++i) camera.distortion[i] = d[i];
+      for (int i = 0; i < 5; ++i) {
+        camera.distortion[i] = d[i];
+      }
     }
     if (has_p) {
       const std::vector<double> p = Numbers("P", 12);
       Eigen::Matrix<double, 3, 4> P;
       for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 4; ++c) P(r, c) = p[4 * r + c];
+        for (int c = 0; c < 4; ++c) {
+          P(r, c) = p[4 * r + c];
+        }
       }
       std::string error;
       const std::optional<DecomposeResult> krt = DecomposeProjection(P, &error);
-      if (!krt) throw ConfigError::At(file_, LineOf(Key("P")), Path("P") + ": " + error);
+      if (!krt) {
+        throw ConfigError::At(file_, LineOf(Key("P")), Path("P") + ": " + error);
+      }
       camera.K = krt->K;
       camera.R_CW = krt->R_CW;
       camera.t_CW = krt->t_CW;
       return camera;
     }
-    for (const char* key : {"K", "R", "t"}) Require(key);
+    for (const char* key : {"K", "R", "t"}) {
+      Require(key);
+    }
     camera.K = Matrix3("K");
     camera.R_CW = Matrix3("R");
     const std::vector<double> t = Numbers("t", 3);
@@ -166,8 +175,12 @@ class CameraParser {
           ok = false;
         }
       }
-      if (!ok) throw ConfigError::At(file_, LineOf(e), at + ": not a number");
-      if (!std::isfinite(out[i])) throw ConfigError::At(file_, LineOf(e), at + ": not finite");
+      if (!ok) {
+        throw ConfigError::At(file_, LineOf(e), at + ": not a number");
+      }
+      if (!std::isfinite(out[i])) {
+        throw ConfigError::At(file_, LineOf(e), at + ": not finite");
+      }
     }
     return out;
   }
@@ -176,7 +189,9 @@ class CameraParser {
     const std::vector<double> m = Numbers(key, 9);
     Eigen::Matrix3d out;
     for (int r = 0; r < 3; ++r) {
-      for (int c = 0; c < 3; ++c) out(r, c) = m[3 * r + c];
+      for (int c = 0; c < 3; ++c) {
+        out(r, c) = m[3 * r + c];
+      }
     }
     return out;
   }
@@ -241,7 +256,9 @@ std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::stri
 
 std::vector<CameraModel> LoadCamerasFile(const std::string& path) {
   std::ifstream in(path);
-  if (!in) throw ConfigError::At(path, 0, "cannot open");
+  if (!in) {
+    throw ConfigError::At(path, 0, "cannot open");
+  }
   YAML::Node root;
   try {
     root = YAML::Load(in);
@@ -261,11 +278,15 @@ std::vector<CameraModel> LoadCamerasFile(const std::string& path) {
     if (key != "cameras") {
       throw ConfigError::At(path, LineOf(kv.first), "unknown key '" + key + "'");
     }
-    if (found) throw ConfigError::At(path, LineOf(kv.first), "duplicate key 'cameras'");
+    if (found) {
+      throw ConfigError::At(path, LineOf(kv.first), "duplicate key 'cameras'");
+    }
     found = true;
     cameras = kv.second;
   }
-  if (!found) throw ConfigError::At(path, LineOf(root), "missing key 'cameras'");
+  if (!found) {
+    throw ConfigError::At(path, LineOf(root), "missing key 'cameras'");
+  }
   return ParseCameraList(cameras, path);
 }
 
@@ -276,7 +297,9 @@ void WriteCamerasFile(const std::string& path, const std::vector<CameraModel>& c
   out << YAML::BeginMap << YAML::Key << "cameras" << YAML::Value << YAML::BeginSeq;
   auto flow = [&out](const auto& values) {
     out << YAML::Flow << YAML::BeginSeq;
-    for (double v : values) out << v;
+    for (double v : values) {
+      out << v;
+    }
     out << YAML::EndSeq;
   };
   for (const CameraModel& c : cameras) {
@@ -303,12 +326,16 @@ void WriteCamerasFile(const std::string& path, const std::vector<CameraModel>& c
     out << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  if (!out.good()) throw ConfigError::At(path, 0, "cannot write: " + out.GetLastError());
+  if (!out.good()) {
+    throw ConfigError::At(path, 0, "cannot write: " + out.GetLastError());
+  }
 
   std::ofstream file(path, std::ios::out | std::ios::trunc);
   file << out.c_str() << '\n';
   file.close();
-  if (!file) throw ConfigError::At(path, 0, "cannot write");
+  if (!file) {
+    throw ConfigError::At(path, 0, "cannot write");
+  }
 }
 
 }  // namespace hg::geometry

@@ -94,7 +94,9 @@ struct RegionBounds {
   bool finite = true;
 
   void Add(const Sample& s) {
-    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.det)) finite = false;
+    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.det)) {
+      finite = false;
+    }
     x_min = std::min(x_min, s.x);
     x_max = std::max(x_max, s.x);
     y_min = std::min(y_min, s.y);
@@ -107,7 +109,9 @@ struct RegionBounds {
   }
   /// One edge, kSegments + 1 samples in order along it.
   void AddEdge(const Sample* const* edge) {
-    for (int i = 0; i <= kSegments; ++i) Add(*edge[i]);
+    for (int i = 0; i <= kSegments; ++i) {
+      Add(*edge[i]);
+    }
     for (int i = 1; i < kSegments; ++i) {
       const double ddx = edge[i - 1]->x - 2.0 * edge[i]->x + edge[i + 1]->x;
       const double ddy = edge[i - 1]->y - 2.0 * edge[i]->y + edge[i + 1]->y;
@@ -149,7 +153,9 @@ ConservativeUndistorter::ConservativeUndistorter(const geometry::CameraModel& ca
   std::vector<Sample> bottom(line_samples);
   std::vector<Sample> vertical(static_cast<std::size_t>(w + 1) * (kSegments - 1));
   auto fill_line = [&](double y, std::vector<Sample>* line) {
-    for (int k = 0; k < line_samples; ++k) (*line)[k] = map.At(-0.5 + k * kStep, y);
+    for (int k = 0; k < line_samples; ++k) {
+      (*line)[k] = map.At(-0.5 + k * kStep, y);
+    }
   };
   fill_line(-0.5, &top);
 
@@ -165,17 +171,21 @@ ConservativeUndistorter::ConservativeUndistorter(const geometry::CameraModel& ca
     for (int u = 0; u < w; ++u) {
       RegionBounds b;
       const int k0 = kSegments * u;
-      for (int j = 0; j <= kSegments; ++j) edge[j] = &top[k0 + j];
+      for (int j = 0; j <= kSegments; ++j) {
+        edge[j] = &top[k0 + j];
+      }
       b.AddEdge(edge);
-      for (int j = 0; j <= kSegments; ++j) edge[j] = &bottom[k0 + j];
+      for (int j = 0; j <= kSegments; ++j) {
+        edge[j] = &bottom[k0 + j];
+      }
       b.AddEdge(edge);
       for (int side = 0; side < 2; ++side) {
         const int i = u + side;
-        edge[0] = &top[kSegments * i];
+        edge[0] = &top[static_cast<std::size_t>(kSegments) * i];
         for (int j = 1; j < kSegments; ++j) {
           edge[j] = &vertical[static_cast<std::size_t>(i) * (kSegments - 1) + (j - 1)];
         }
-        edge[kSegments] = &bottom[kSegments * i];
+        edge[kSegments] = &bottom[static_cast<std::size_t>(kSegments) * i];
         b.AddEdge(edge);
       }
       b.AddDet(map.At(u, v).det);
@@ -239,7 +249,9 @@ void ConservativeUndistorter::Apply(const common::ImageViewU8& in, std::uint8_t 
     } else {
       peak = 0;
       for (int y = 0; y <= dv; ++y, p += stride) {
-        for (int x = 0; x <= du; ++x) peak = std::max(peak, p[x]);
+        for (int x = 0; x <= du; ++x) {
+          peak = std::max(peak, p[x]);
+        }
       }
     }
     *dst = peak > threshold ? 255 : 0;

@@ -25,7 +25,7 @@ std::string TempPath(const std::string& suffix) {
 }
 
 std::string WriteTemp(const std::string& text, const std::string& suffix = "in") {
-  const std::string path = TempPath(suffix);
+  std::string path = TempPath(suffix);
   std::ofstream(path) << text;
   return path;
 }
@@ -105,7 +105,9 @@ TEST(CameraYamlTest, WriteThenLoadIsExact) {
     c.height = 1080;
     c.K << 1000 + 100 * unit(rng), 0.01 * unit(rng), 960 + unit(rng), 0, 1000 + 100 * unit(rng),
         540 + unit(rng), 0, 0, 1;
-    for (double& d : c.distortion) d = 0.1 * unit(rng);
+    for (double& d : c.distortion) {
+      d = 0.1 * unit(rng);
+    }
     c.distortion[3] = -0.0;
     c.R_CW = RandomRotation(rng);
     c.t_CW = Eigen::Vector3d(unit(rng), unit(rng), 1e-17 * unit(rng));
@@ -122,7 +124,9 @@ TEST(CameraYamlTest, WriteThenLoadIsExact) {
     EXPECT_EQ(back[i].K, cams[i].K) << i;  // Bit-exact, not approximately equal.
     EXPECT_EQ(back[i].R_CW, cams[i].R_CW) << i;
     EXPECT_EQ(back[i].t_CW, cams[i].t_CW) << i;
-    for (int k = 0; k < 5; ++k) EXPECT_EQ(back[i].distortion[k], cams[i].distortion[k]) << i;
+    for (int k = 0; k < 5; ++k) {
+      EXPECT_EQ(back[i].distortion[k], cams[i].distortion[k]) << i;
+    }
   }
   EXPECT_TRUE(std::signbit(back[0].distortion[3]));
 }

@@ -52,13 +52,30 @@ std::vector<const common::ImageU8*> Pointers(const std::vector<common::ImageU8>&
   return p;
 }
 
-// Every point sampled inside an object must not be free.
+// A point inside the shape within ~1e-9 m of its surface: silhouette edges are
+// where an off-by-a-fraction-of-a-pixel footprint would free object space.
+Eigen::Vector3d SampleNearSurface(const scene::Shape& shape, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  const Eigen::Vector3d inside = scene::SampleInside(shape, [&] { return u01(rng); });
+  const Eigen::Vector3d dir =
+      Eigen::Vector3d(u01(rng) - 0.5, u01(rng) - 0.5, u01(rng) - 0.5).normalized();
+  double lo = 0.0, hi = 10.0;  // inside + lo * dir is inside, + hi * dir is outside.
+  while (hi - lo > 1e-10) {
+    const double mid = 0.5 * (lo + hi);
+    (scene::Contains(shape, inside + mid * dir) ? lo : hi) = mid;
+  }
+  return inside + lo * dir;
+}
+
+// Every point sampled inside an object (half of them at its surface) must not be free.
 void ExpectObjectsNotFree(const Octree& tree, const std::vector<scene::Shape>& objects,
                           std::mt19937_64& rng, int samples_per_object) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   for (std::size_t o = 0; o < objects.size(); ++o) {
     for (int i = 0; i < samples_per_object; ++i) {
-      const Eigen::Vector3d p = scene::SampleInside(objects[o], [&] { return u01(rng); });
+      const Eigen::Vector3d p = i % 2 == 0
+                                    ? scene::SampleInside(objects[o], [&] { return u01(rng); })
+                                    : SampleNearSurface(objects[o], rng);
       const PointState s = tree.StateAt(p);
       ASSERT_NE(s, PointState::kFree) << "object " << o << " point " << p.transpose();
     }

@@ -54,7 +54,9 @@ TEST(ConservativeUndistorterTest, ZeroDistortionIsExactIdentity) {
   std::vector<std::uint8_t> buffer(static_cast<std::size_t>(stride) * h);
   std::mt19937_64 rng(11);
   std::uniform_int_distribution<int> grey(0, 255);
-  for (std::uint8_t& b : buffer) b = static_cast<std::uint8_t>(grey(rng));
+  for (std::uint8_t& b : buffer) {
+    b = static_cast<std::uint8_t>(grey(rng));
+  }
   const common::ImageViewU8 in{buffer.data(), w, h, stride};
   ImageU8 out;
   undistorter.Apply(in, 100, &out);
@@ -98,8 +100,12 @@ TEST(ConservativeUndistorterTest, EveryObjectPointStaysForeground) {
         const double r = radius * std::sqrt(unit(rng));
         const double a = uniform(0, 2 * std::numbers::pi);
         Eigen::Vector2d q = centre + r * Eigen::Vector2d(std::cos(a), std::sin(a));
-        if (i % 5 == 0) q.x() = std::round(q.x()) + 0.5;
-        if (i % 7 == 0) q.y() = std::nextafter(std::round(q.y()) + 0.5, -1e9);
+        if (i % 5 == 0) {
+          q.x() = std::round(q.x()) + 0.5;
+        }
+        if (i % 7 == 0) {
+          q.y() = std::nextafter(std::round(q.y()) + 0.5, -1e9);
+        }
         points.push_back(q);
       }
     }
@@ -109,7 +115,9 @@ TEST(ConservativeUndistorterTest, EveryObjectPointStaysForeground) {
       const Eigen::Vector2d s = DistortPixel(cam, q);
       const int su = PixelOf(s.x());
       const int sv = PixelOf(s.y());
-      if (su >= 0 && su < w && sv >= 0 && sv < h) distorted.At(su, sv) = 200;
+      if (su >= 0 && su < w && sv >= 0 && sv < h) {
+        distorted.At(su, sv) = 200;
+      }
     }
     ImageU8 out;
     undistorter.Apply(distorted.View(), 127, &out);
@@ -117,7 +125,9 @@ TEST(ConservativeUndistorterTest, EveryObjectPointStaysForeground) {
     for (const Eigen::Vector2d& q : points) {
       const int u = PixelOf(q.x());
       const int v = PixelOf(q.y());
-      if (u < 0 || u >= w || v < 0 || v >= h) continue;
+      if (u < 0 || u >= w || v < 0 || v >= h) {
+        continue;
+      }
       ++checked;
       const Eigen::Vector2d s = DistortPixel(cam, q);
       if (PixelOf(s.x()) >= 0 && PixelOf(s.x()) < w && PixelOf(s.y()) >= 0 && PixelOf(s.y()) < h) {
@@ -159,7 +169,9 @@ TEST(ConservativeUndistorterTest, BarrelDistortionDilatesLittle) {
     const double r = 8 + 22 * unit(rng);
     for (int v = 0; v < h; ++v) {
       for (int u = 0; u < w; ++u) {
-        if ((u - cu) * (u - cu) + (v - cv) * (v - cv) <= r * r) source.At(u, v) = 255;
+        if ((u - cu) * (u - cu) + (v - cv) * (v - cv) <= r * r) {
+          source.At(u, v) = 255;
+        }
       }
     }
   }
@@ -180,7 +192,9 @@ TEST(ConservativeUndistorterTest, BarrelDistortionDilatesLittle) {
       if (reference.At(u, v) != 0) {
         ASSERT_EQ(out.At(u, v), 255) << u << "," << v;
       }
-      if (out.At(u, v) == 0) continue;
+      if (out.At(u, v) == 0) {
+        continue;
+      }
       bool near = false;
       for (int dv = -2; dv <= 2 && !near; ++dv) {
         for (int du = -2; du <= 2 && !near; ++du) {
