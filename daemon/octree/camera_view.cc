@@ -21,8 +21,9 @@ CameraView::CameraView(const geometry::CameraModel& pinhole,
 }
 
 Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
-                 const geometry::Footprint& fp) {
+                 const geometry::Footprint& fp, bool* geometric) {
   using Side = geometry::Footprint::Side;
+  *geometric = true;
   if (mask == nullptr || fp.side == Side::kBehind) return Verdict::kHidden;
   if (fp.side == Side::kStraddling) return Verdict::kMixed;
   const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
@@ -38,7 +39,9 @@ Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* m
   } else if (inside && cover == silhouette::Cover::kBackground) {
     return Verdict::kFree;
   }
-  return cover == silhouette::Cover::kForeground ? Verdict::kFull : Verdict::kMixed;
+  if (cover == silhouette::Cover::kForeground) return Verdict::kFull;
+  *geometric = cover != silhouette::Cover::kMixed;
+  return Verdict::kMixed;
 }
 
 }  // namespace hg::octree

@@ -49,7 +49,11 @@ enum class Verdict : std::uint8_t {
 
 /// Classifies the box with footprint `fp` in one camera. `mask == nullptr`
 /// means the camera delivers nothing (lost or stale): it sees nothing.
+/// For kMixed, `*geometric` tells whether the mixture comes only from geometry
+/// (the box straddles the camera plane, the image border or an obstacle's
+/// depth while every footprint pixel in the image is background), not from
+/// the silhouette.
 [[nodiscard]] Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
-                               const geometry::Footprint& fp);
+                               const geometry::Footprint& fp, bool* geometric);
 
 }  // namespace hg::octree

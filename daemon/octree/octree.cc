@@ -54,7 +54,11 @@ class Octree::Updater {
  public:
   Updater(Octree& tree, std::span<const silhouette::SilhouetteQuadtree* const> masks,
           std::uint32_t all_changed, const UpdateControl& control)
-      : tree_(tree), masks_(masks), all_changed_(all_changed), control_(control) {}
+      : tree_(tree),
+        masks_(masks),
+        all_changed_(all_changed),
+        control_(control),
+        boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening) {}
 
   /// Per-worker counters, summed after the pass.
   struct Counters {
@@ -182,10 +186,13 @@ class Octree::Updater {
     }
     for (int c = 0; c < num_cameras && !any_free; ++c) {
       if (((recompute >> c) & 1u) == 0) continue;
-      const Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c]);
+      bool geometric = false;
+      const Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], &geometric);
       ++k.verdicts;
       node.verdicts = SetVerdict(node.verdicts, c, v);
       node.valid |= static_cast<std::uint16_t>(1u << c);
+      node.geometric = static_cast<std::uint16_t>(
+          geometric ? (node.geometric | (1u << c)) : (node.geometric & ~(1u << c)));
       recompute &= ~(1u << c);
       any_free = v == Verdict::kFree;
     }
@@ -193,21 +200,30 @@ class Octree::Updater {
     node.valid &= static_cast<std::uint16_t>(~recompute);
 
     bool all_hidden = true;
-    bool any_mixed = false;
+    bool any_full = false;
+    bool mask_mixed = false;      // Some camera's silhouette is mixed here.
+    bool geometric_mixed = false;  // Some camera is mixed through geometry only.
     for (int c = 0; c < num_cameras && !any_free; ++c) {
       const Verdict v = GetVerdict(node.verdicts, c);
       all_hidden = all_hidden && v == Verdict::kHidden;
-      any_mixed = any_mixed || v == Verdict::kMixed;
+      any_full = any_full || v == Verdict::kFull;
+      if (v == Verdict::kMixed) {
+        (((node.geometric >> c) & 1u) != 0 ? geometric_mixed : mask_mixed) = true;
+      }
     }
     {
       Node& n = pool.nodes[index];
       n.verdicts = node.verdicts;
       n.valid = node.valid;
+      n.geometric = node.geometric;
     }
     if (any_free) return MakeLeaf(pool, index, kFreeLeaf);
     if (num_cameras == 0 || all_hidden) return MakeLeaf(pool, index, kOccludedLeaf);
-    if (!any_mixed || cell.level >= tree_.config_.depth) {
+    if ((!mask_mixed && !geometric_mixed) || cell.level >= tree_.config_.depth) {
       return MakeLeaf(pool, index, kOccupiedLeaf);
+    }
+    if (!mask_mixed && cell.level >= boundary_depth_) {
+      return MakeLeaf(pool, index, any_full ? kOccupiedLeaf : kOccludedLeaf);
     }
 
     // Mixed: split. Children of a pending node, or new children, are stale.
@@ -237,6 +253,7 @@ class Octree::Updater {
   std::span<const silhouette::SilhouetteQuadtree* const> masks_;
   std::uint32_t all_changed_;
   const UpdateControl& control_;
+  const int boundary_depth_;
   std::atomic<bool> aborted_{false};
   std::atomic<std::int64_t> spent_{0};
 };
@@ -246,6 +263,7 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   HG_CHECK(config_.bounds.IsValid());
   HG_CHECK(config_.depth >= kRootLevel && config_.depth <= 20);
   HG_CHECK(config_.num_threads >= 1);
+  HG_CHECK(config_.boundary_coarsening >= 0);
   HG_CHECK(static_cast<int>(cameras_.size()) <= kMaxCameras);
   roots_.resize(kNumRoots);
   Reset();

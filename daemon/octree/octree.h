@@ -22,6 +22,13 @@ struct OctreeConfig {
   common::Box3 bounds;  ///< Surveillance volume (m).
   int depth = 10;       ///< Finest cells are bounds / 2^depth; depth 3 is the 8x8x8 roots.
   int num_threads = 1;  ///< Worker threads for the update (the caller's thread included).
+  /// Boxes that are mixed only through geometry (the edge of a camera's view,
+  /// the depth of an obstacle, but background everywhere in the silhouettes)
+  /// are split down to depth - boundary_coarsening only; there they become
+  /// occluded leaves (occupied when a camera sees foreground in them). These
+  /// boundaries are static, and resolving them to the finest cell costs more
+  /// than everything else. 0 resolves them exactly.
+  int boundary_coarsening = 3;
 };
 
 /// State of a leaf.
@@ -124,6 +131,7 @@ class Octree {
     std::uint32_t children = kNoChildren;  // First of 8 consecutive nodes in the pool.
     std::uint32_t verdicts = 0;            // 2 bits per camera.
     std::uint16_t valid = 0;               // Cameras whose cached verdict is current.
+    std::uint16_t geometric = 0;           // Cameras whose kMixed verdict is geometric.
     std::uint8_t state = 0;                // NodeState.
     std::uint8_t flags = 0;                // kPending | kHasPending.
   };

@@ -113,7 +113,8 @@ TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   Quadtrees qt(scene.cameras);
   qt.Build(masks);
-  Octree tree({scene.bounds, 6, 1 + seed % 3}, views);
+  // Exact boundaries, so that every cell can be compared with the oracle.
+  Octree tree({scene.bounds, 6, 1 + seed % 3, /*boundary_coarsening=*/0}, views);
   const UpdateStats stats = tree.Update(qt.ptrs);
   EXPECT_FALSE(stats.aborted);
   std::mt19937_64 rng(seed);
@@ -121,6 +122,18 @@ TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
   const DenseGrid oracle =
       testing::DenseCarve(scene.bounds, 6, scene.cameras, Pointers(masks), DepthMaps(views));
   ExpectMatchesOracle(testing::Rasterize(tree), oracle);
+
+  // Coarse geometric boundaries only take free space away.
+  Octree coarse({scene.bounds, 6, 2, /*boundary_coarsening=*/2}, views);
+  coarse.Update(qt.ptrs);
+  ExpectObjectsNotFree(coarse, scene.objects, rng, 2000);
+  const DenseGrid coarse_grid = testing::Rasterize(coarse);
+  for (std::size_t i = 0; i < oracle.states.size(); ++i) {
+    if (coarse_grid.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
+      ASSERT_EQ(oracle.states[i], static_cast<std::uint8_t>(LeafState::kFree)) << "cell " << i;
+    }
+  }
+  EXPECT_LE(coarse.NumNodes(), tree.NumNodes());
 
   // Free space is certified by a camera that really sees it: for points the
   // octree calls free, some camera sees the point unobstructed on background.
@@ -261,7 +274,7 @@ TEST(OctreeLostCameraTest, LosingACameraOnlyGrowsOccupiedSpace) {
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   Quadtrees qt(scene.cameras);
   qt.Build(masks);
-  Octree tree({scene.bounds, 6, 2}, views);
+  Octree tree({scene.bounds, 6, 2, 0}, views);
   tree.Update(qt.ptrs);
   const DenseGrid before = testing::Rasterize(tree);
   auto lost = qt.ptrs;
@@ -287,7 +300,7 @@ TEST(OctreeLostCameraTest, LosingACameraOnlyGrowsOccupiedSpace) {
   // The camera comes back: the result equals a fresh build again.
   qt.Build(masks);
   tree.Update(qt.ptrs);
-  Octree fresh({scene.bounds, 6, 1}, views);
+  Octree fresh({scene.bounds, 6, 1, 0}, views);
   fresh.Update(qt.ptrs);
   EXPECT_EQ(testing::Leaves(tree), testing::Leaves(fresh));
 }

@@ -8,8 +8,8 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "scene/shapes.h"
 
@@ -44,8 +44,7 @@ Matrix3d RandomRotation(std::mt19937_64& rng) {
   return q.toRotationMatrix();
 }
 
-Shape RandomShapeAt(std::mt19937_64& rng, const Vector3d& centre, double size_lo,
-                    double size_hi) {
+Shape RandomShapeAt(std::mt19937_64& rng, const Vector3d& centre, double size_lo, double size_hi) {
   switch (std::uniform_int_distribution<int>(0, 2)(rng)) {
     case 0:
       return Sphere{centre, Uniform(rng, size_lo, size_hi)};
@@ -244,9 +243,9 @@ std::optional<Vector2d> UndistortFixedPoint(const std::array<double, 5>& k, cons
     const double y = xy.y();
     const double r2 = x * x + y * y;
     const double radial = 1 + k[0] * r2 + k[1] * r2 * r2 + k[4] * r2 * r2 * r2;
-    return std::pair<double, Vector2d>(
-        radial, Vector2d(2 * k[2] * x * y + k[3] * (r2 + 2 * x * x),
-                         k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y));
+    return std::pair<double, Vector2d>(radial,
+                                       Vector2d(2 * k[2] * x * y + k[3] * (r2 + 2 * x * x),
+                                                k[2] * (r2 + 2 * y * y) + 2 * k[3] * x * y));
   };
   Vector2d x = xd;
   for (int i = 0; i < 500; ++i) {
@@ -376,8 +375,8 @@ TEST(ShapesTest, VolumeMatchesMonteCarlo) {
 
 TEST(ShapesTest, VolumeFormulas) {
   EXPECT_NEAR(Volume(Sphere{Vector3d::Zero(), 2.0}), 32.0 / 3.0 * std::numbers::pi, 1e-12);
-  EXPECT_NEAR(Volume(OrientedBox{Vector3d::Zero(), Vector3d(1, 2, 3), Matrix3d::Identity()}),
-              48.0, 1e-12);
+  EXPECT_NEAR(Volume(OrientedBox{Vector3d::Zero(), Vector3d(1, 2, 3), Matrix3d::Identity()}), 48.0,
+              1e-12);
   EXPECT_NEAR(Volume(Capsule{Vector3d::Zero(), Vector3d(0, 3, 4), 1.0}),
               5.0 * std::numbers::pi + 4.0 / 3.0 * std::numbers::pi, 1e-12);
 }
@@ -470,7 +469,7 @@ TEST(ExactMaskTest, NoForegroundFarFromRayCastSilhouette) {
     const common::ImageU8 exact = RenderExactMask(camera, shapes);
     const common::ImageU8 cast = RayCastMask(camera, shapes, 7);
     exact_total += CountForeground(exact);
-    EXPECT_EQ(CountNotIn(cast, exact), 0) << "trial " << trial;  // Correct...
+    EXPECT_EQ(CountNotIn(cast, exact), 0) << "trial " << trial;          // Correct...
     EXPECT_EQ(CountNotIn(exact, Dilate(cast)), 0) << "trial " << trial;  // ...and tight.
   }
   EXPECT_GT(exact_total, 1000);

@@ -154,9 +154,7 @@ Vector3d ClosestPointAndReduce(Simplex* simplex) {
 // the next pixel at the cost of one support call.
 template <class SetA, class SetB>
 bool CertifiedSeparated(const SetA& a, const SetB& b, double tol, Vector3d* hint) {
-  const auto support = [&](const Vector3d& v) -> Vector3d {
-    return a.Support(-v) - b.Support(v);
-  };
+  const auto support = [&](const Vector3d& v) -> Vector3d { return a.Support(-v) - b.Support(v); };
   Vector3d w = support(*hint);
   if (hint->squaredNorm() > 0.0 && hint->dot(w) > tol * hint->norm()) return true;
 
@@ -327,9 +325,9 @@ PixelRange CandidatePixels(const ShapeInCamera& shape_C, const common::Box3& bou
 struct ShapeView {
   ShapeInCamera in_camera;
   common::Box3 bounds_W;
-  double far = 0.0;          // Beyond every point of the shape, > 0.
-  double extent = 0.0;       // Size scale of the shape as seen from C (m).
-  bool in_front = false;     // Some point has z > 0.
+  double far = 0.0;       // Beyond every point of the shape, > 0.
+  double extent = 0.0;    // Size scale of the shape as seen from C (m).
+  bool in_front = false;  // Some point has z > 0.
 };
 
 ShapeView MakeShapeView(const Shape& shape, const geometry::CameraModel& camera) {
