@@ -355,6 +355,11 @@ bool AllInRect(const Levels& levels, const PixelRect& rect, AllOk all_ok) {
   // int image sizes give at most 32 levels.
   constexpr int kStackSize = 3 * 32 + 2;
   std::array<Entry, kStackSize> stack;
+  // One pixel that fails settles the answer: probing a corner first turns the
+  // common negative answer into a single look-up.
+  if (!all_ok(levels[0].values[static_cast<size_t>(rect.v0) * levels[0].width + rect.u0])) {
+    return false;
+  }
   int top = 0;
   const int top_level = static_cast<int>(levels.size()) - 1;
   HG_CHECK(top_level < 32);
