@@ -72,7 +72,7 @@ class Octree::Updater {
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
-    Visit(pool, 0, cell, false, counters);
+    Visit(pool, 0, cell, false, 0, 0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -139,12 +139,29 @@ class Octree::Updater {
     m.flags = 0;
   }
 
-  void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force, Counters& k) {
+  // `inherit` holds the cameras whose verdict on the parent is full or hidden,
+  // with those verdicts in `parent_verdicts`. Both are monotone (a sub-box has
+  // a sub-footprint and a depth range inside the parent's), so the child takes
+  // them over without a footprint or a quadtree query.
+  void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force,
+             std::uint32_t inherit, std::uint32_t parent_verdicts, Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
     const common::Box3 box = CellBox(tree_.config_.bounds, cell);
     ++k.visited;
     Node node = pool.nodes[index];  // Copy: the pool may grow below.
     const bool recompute_all = force || (node.flags & kPending) != 0;
+    // Inherited verdicts are stored but never marked valid: when the parent
+    // stops passing a camera down, the child computes its own verdict.
+    bool inherited_news = false;  // An inherited verdict differs from the stored one.
+    for (int c = 0; c < num_cameras; ++c) {
+      if (((inherit >> c) & 1u) == 0) continue;
+      const Verdict v = GetVerdict(parent_verdicts, c);
+      inherited_news = inherited_news || ((node.valid >> c) & 1u) != 0 ||
+                       GetVerdict(node.verdicts, c) != v;
+      node.verdicts = SetVerdict(node.verdicts, c, v);
+      node.valid &= static_cast<std::uint16_t>(~(1u << c));
+      node.geometric &= static_cast<std::uint16_t>(~(1u << c));
+    }
 
     // Fast path: a free leaf stays free while one camera that certified it sees
     // no change in its footprint.
@@ -164,12 +181,13 @@ class Octree::Updater {
     geometry::Footprint fps[kMaxCameras];
     std::uint32_t recompute = 0;
     for (int c = 0; c < num_cameras; ++c) {
+      if (((inherit >> c) & 1u) != 0) continue;
       fps[c] = FootprintOf(c, box);
       if (recompute_all || ((node.valid >> c) & 1u) == 0 || ChangedIn(c, fps[c])) {
         recompute |= 1u << c;
       }
     }
-    if (!recompute_all && recompute == 0 && (node.flags & kHasPending) == 0) {
+    if (!recompute_all && recompute == 0 && !inherited_news && (node.flags & kHasPending) == 0) {
       return;  // Subtree still exact.
     }
     if (CheckAbort(k)) {
@@ -239,11 +257,16 @@ class Octree::Updater {
       n.state = kInner;
       n.flags = 0;
     }
+    std::uint32_t child_inherit = 0;
+    for (int c = 0; c < num_cameras; ++c) {
+      const Verdict v = GetVerdict(node.verdicts, c);
+      if (v == Verdict::kFull || v == Verdict::kHidden) child_inherit |= 1u << c;
+    }
     std::uint8_t below = 0;
     for (std::uint32_t i = 0; i < 8; ++i) {
       const Cell child{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
                        2 * cell.z + ((i >> 2) & 1)};
-      Visit(pool, first + i, child, child_force, k);
+      Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, k);
       below |= pool.nodes[first + i].flags;
     }
     if (below != 0) pool.nodes[index].flags = kHasPending;
