@@ -8,6 +8,8 @@
 #include <gtest/gtest.h>
 
 #include "geometry/camera_yaml.h"
+#include "geometry/mesh.h"
+#include "scene/demo_cell.h"
 #include "scene/exact_mask.h"
 #include "silhouette/mask_io.h"
 #include "support/random_scene.h"
@@ -156,6 +158,33 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
     EXPECT_NE(r.err.find(c.expect), std::string::npos) << "stderr: " << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
   }
+}
+
+}  // namespace
+}  // namespace hg
+
+namespace hg {
+namespace {
+
+// The shipped demo cell files are what the built-in cell generates.
+TEST(DemoCellConfigTest, ShippedFilesMatchTheBuiltInCell) {
+  scene::DemoCellOptions opt;
+  opt.num_cameras = 8;
+  const scene::DemoCell cell = scene::MakeDemoCell(opt);
+  const auto cams =
+      geometry::LoadCamerasFile(std::string(HG_SOURCE_DIR) + "/config/demo_cell/cameras.yaml");
+  ASSERT_EQ(cams.size(), cell.cameras.size());
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    EXPECT_EQ(cams[i].name, cell.cameras[i].name);
+    EXPECT_TRUE(cams[i].K.isApprox(cell.cameras[i].K, 1e-12));
+    EXPECT_TRUE(cams[i].R_CW.isApprox(cell.cameras[i].R_CW, 1e-12));
+    EXPECT_TRUE(cams[i].t_CW.isApprox(cell.cameras[i].t_CW, 1e-12));
+  }
+  const geometry::TriangleMesh mesh =
+      geometry::LoadObj(std::string(HG_SOURCE_DIR) + "/config/demo_cell/obstacles.obj");
+  std::size_t triangles = 0;
+  for (const auto& m : cell.obstacles) triangles += m.triangles.size();
+  EXPECT_EQ(mesh.triangles.size(), triangles);
 }
 
 }  // namespace

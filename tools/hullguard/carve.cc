@@ -90,22 +90,32 @@ void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::Camer
   tree.ForEachLeaf([&](const octree::Cell& c, octree::LeafState s) {
     if (s != octree::LeafState::kFree) leaves.push_back({octree::CellBox(b, c), s});
   });
-  auto colour = [&](const Leaf& l, double height01) {
-    if (l.state == octree::LeafState::kOccluded) return cv::Scalar(170, 170, 170);
+  // Occluded space first, light, as background; occupied leaves over it,
+  // painted far to near so that the nearest (highest / front-most) wins.
+  auto colour = [](double height01) {
     const double t = std::clamp(height01, 0.0, 1.0);
     return cv::Scalar(40 + 60 * (1 - t), 40 + 80 * t, 140 + 115 * t);
   };
+  const cv::Scalar occluded(215, 215, 215);
+  for (const Leaf& l : leaves) {
+    if (l.state != octree::LeafState::kOccluded) continue;
+    cv::rectangle(img, top(l.box.min.x(), l.box.max.y()), top(l.box.max.x(), l.box.min.y()),
+                  occluded, cv::FILLED);
+    cv::rectangle(img, side(l.box.min.x(), l.box.max.z()), side(l.box.max.x(), l.box.min.z()),
+                  occluded, cv::FILLED);
+  }
+  std::erase_if(leaves, [](const Leaf& l) { return l.state == octree::LeafState::kOccluded; });
   std::sort(leaves.begin(), leaves.end(),
             [](const Leaf& a, const Leaf& l) { return a.box.max.z() < l.box.max.z(); });
   for (const Leaf& l : leaves) {
     cv::rectangle(img, top(l.box.min.x(), l.box.max.y()), top(l.box.max.x(), l.box.min.y()),
-                  colour(l, (l.box.max.z() - b.min.z()) / size.z()), cv::FILLED);
+                  colour((l.box.max.z() - b.min.z()) / size.z()), cv::FILLED);
   }
   std::sort(leaves.begin(), leaves.end(),
             [](const Leaf& a, const Leaf& l) { return a.box.min.y() > l.box.min.y(); });
   for (const Leaf& l : leaves) {
     cv::rectangle(img, side(l.box.min.x(), l.box.max.z()), side(l.box.max.x(), l.box.min.z()),
-                  colour(l, (b.max.y() - l.box.min.y()) / size.y()), cv::FILLED);
+                  colour((b.max.y() - l.box.min.y()) / size.y()), cv::FILLED);
   }
   for (const auto& mesh : obstacles) {
     for (const auto& t : mesh.triangles) {
@@ -124,10 +134,10 @@ void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::Camer
     cv::circle(img, top(c.x(), c.y()), 6, cv::Scalar(200, 80, 0), cv::FILLED);
     cv::circle(img, side(c.x(), c.z()), 6, cv::Scalar(200, 80, 0), cv::FILLED);
   }
-  cv::putText(img, "top view (x right, y up)", cv::Point(margin, 30), cv::FONT_HERSHEY_SIMPLEX, 0.6,
-              cv::Scalar(0, 0, 0), 1);
-  cv::putText(img, "side view (x right, z up)", cv::Point(2 * margin + top_w, 30),
-              cv::FONT_HERSHEY_SIMPLEX, 0.6, cv::Scalar(0, 0, 0), 1);
+  cv::putText(img, "top view (x right, y up); red: occupied, grey: occluded, blue: cameras",
+              cv::Point(margin, 22), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1);
+  cv::putText(img, "side view (x right, z up)", cv::Point(2 * margin + top_w, 22),
+              cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1);
   bool ok = false;
   try {
     ok = cv::imwrite(path, img);
