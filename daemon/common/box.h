@@ -19,8 +19,7 @@ struct Box3 {
   [[nodiscard]] double Volume() const { return Size().prod(); }
   /// Corner i, bit 0 selects x max, bit 1 y max, bit 2 z max.
   [[nodiscard]] Eigen::Vector3d Corner(int i) const {
-    return {(i & 1) ? max.x() : min.x(), (i & 2) ? max.y() : min.y(),
-            (i & 4) ? max.z() : min.z()};
+    return {(i & 1) ? max.x() : min.x(), (i & 2) ? max.y() : min.y(), (i & 4) ? max.z() : min.z()};
   }
 };
 

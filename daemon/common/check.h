@@ -14,8 +14,8 @@ namespace hg::common::internal {
 }  // namespace hg::common::internal
 
 /// Aborts with a message when `cond` is false. Always on, also in Release builds.
-#define HG_CHECK(cond)                                                     \
-  do {                                                                     \
-    if (!(cond)) [[unlikely]]                                              \
-      ::hg::common::internal::CheckFailed(#cond, __FILE__, __LINE__);      \
+#define HG_CHECK(cond)                                                \
+  do {                                                                \
+    if (!(cond)) [[unlikely]]                                         \
+      ::hg::common::internal::CheckFailed(#cond, __FILE__, __LINE__); \
   } while (false)

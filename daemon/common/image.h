@@ -30,7 +30,9 @@ struct ImageU8 {
   ImageU8(int w, int h, std::uint8_t fill = 0)
       : width(w), height(h), pixels(static_cast<std::size_t>(w) * h, fill) {}
 
-  [[nodiscard]] std::uint8_t& At(int u, int v) { return pixels[static_cast<std::size_t>(v) * width + u]; }
+  [[nodiscard]] std::uint8_t& At(int u, int v) {
+    return pixels[static_cast<std::size_t>(v) * width + u];
+  }
   [[nodiscard]] std::uint8_t At(int u, int v) const {
     return pixels[static_cast<std::size_t>(v) * width + u];
   }

@@ -363,7 +363,17 @@ bool AllInRect(const Levels& levels, const PixelRect& rect, AllOk all_ok) {
   int top = 0;
   const int top_level = static_cast<int>(levels.size()) - 1;
   HG_CHECK(top_level < 32);
-  stack[top++] = {top_level, 0, 0};
+  // Start at the finest level where the rect spans at most 2x2 elements rather
+  // than at the root: the same answer, without the descent through coarse
+  // elements whose aggregate mixes in far-away pixels.
+  int start = 0;
+  while (start < top_level && (((rect.u1 >> start) - (rect.u0 >> start)) > 1 ||
+                               ((rect.v1 >> start) - (rect.v0 >> start)) > 1)) {
+    ++start;
+  }
+  for (int y = rect.v1 >> start; y >= (rect.v0 >> start); --y) {
+    for (int x = rect.u1 >> start; x >= (rect.u0 >> start); --x) stack[top++] = {start, x, y};
+  }
   while (top > 0) {
     const Entry e = stack[--top];
     const auto& level = levels[e.level];

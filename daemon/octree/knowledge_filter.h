@@ -41,7 +41,6 @@ class KnowledgeFilterResult {
 
 /// Finds the occupied components of the tree and marks those smaller than
 /// `min_volume_m3` as dropped.
-[[nodiscard]] KnowledgeFilterResult FilterSmallComponents(const Octree& tree,
-                                                          double min_volume_m3);
+[[nodiscard]] KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volume_m3);
 
 }  // namespace hg::octree

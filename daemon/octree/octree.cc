@@ -49,6 +49,16 @@ common::Box3 CellBox(const common::Box3& bounds, const Cell& cell) {
   return b;
 }
 
+/// Per-worker counters and scratch, reused from update to update.
+struct alignas(64) Octree::WorkerScratch {
+  std::int64_t visited = 0;
+  std::int64_t verdicts = 0;
+  std::int64_t pending = 0;
+  int clock_countdown = 0;
+  // Footprints per tree level, so that a node visit initialises nothing.
+  geometry::Footprint footprints[21][Octree::kMaxCameras];
+};
+
 /// One update pass: the per-worker traversal of roots.
 class Octree::Updater {
  public:
@@ -61,12 +71,7 @@ class Octree::Updater {
         boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening) {}
 
   /// Per-worker counters, summed after the pass.
-  struct Counters {
-    std::int64_t visited = 0;
-    std::int64_t verdicts = 0;
-    std::int64_t pending = 0;
-    int clock_countdown = 0;
-  };
+  using Counters = WorkerScratch;
 
   void UpdateRoot(int r, Counters& counters) {
     RootPool& pool = tree_.roots_[r];
@@ -156,8 +161,8 @@ class Octree::Updater {
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) == 0) continue;
       const Verdict v = GetVerdict(parent_verdicts, c);
-      inherited_news = inherited_news || ((node.valid >> c) & 1u) != 0 ||
-                       GetVerdict(node.verdicts, c) != v;
+      inherited_news =
+          inherited_news || ((node.valid >> c) & 1u) != 0 || GetVerdict(node.verdicts, c) != v;
       node.verdicts = SetVerdict(node.verdicts, c, v);
       node.valid &= static_cast<std::uint16_t>(~(1u << c));
       node.geometric &= static_cast<std::uint16_t>(~(1u << c));
@@ -178,7 +183,7 @@ class Octree::Updater {
       }
     }
 
-    geometry::Footprint fps[kMaxCameras];
+    geometry::Footprint* fps = k.footprints[cell.level];
     std::uint32_t recompute = 0;
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) continue;
@@ -209,8 +214,8 @@ class Octree::Updater {
       ++k.verdicts;
       node.verdicts = SetVerdict(node.verdicts, c, v);
       node.valid |= static_cast<std::uint16_t>(1u << c);
-      node.geometric = static_cast<std::uint16_t>(
-          geometric ? (node.geometric | (1u << c)) : (node.geometric & ~(1u << c)));
+      node.geometric = static_cast<std::uint16_t>(geometric ? (node.geometric | (1u << c))
+                                                            : (node.geometric & ~(1u << c)));
       recompute &= ~(1u << c);
       any_free = v == Verdict::kFree;
     }
@@ -219,7 +224,7 @@ class Octree::Updater {
 
     bool all_hidden = true;
     bool any_full = false;
-    bool mask_mixed = false;      // Some camera's silhouette is mixed here.
+    bool mask_mixed = false;       // Some camera's silhouette is mixed here.
     bool geometric_mixed = false;  // Some camera is mixed through geometry only.
     for (int c = 0; c < num_cameras && !any_free; ++c) {
       const Verdict v = GetVerdict(node.verdicts, c);
@@ -291,6 +296,7 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   roots_.resize(kNumRoots);
   Reset();
   pool_ = std::make_unique<common::WorkerPool>(config_.num_threads);
+  scratch_ = std::make_unique<WorkerScratch[]>(config_.num_threads);
   last_version_.assign(cameras_.size(), 0);
   last_mask_.assign(cameras_.size(), nullptr);
 }
@@ -318,30 +324,30 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     if (m != nullptr) {
       HG_CHECK(m->width() == cameras_[c].width() && m->height() == cameras_[c].height());
     }
-    const bool continuous = m == last_mask_[c] &&
-                            (m == nullptr ? last_version_[c] == 0
-                                          : m->version() == last_version_[c] + 1);
+    const bool continuous =
+        m == last_mask_[c] &&
+        (m == nullptr ? last_version_[c] == 0 : m->version() == last_version_[c] + 1);
     if (!continuous) all_changed |= 1u << c;
     last_mask_[c] = m;
     last_version_[c] = m == nullptr ? 0 : m->version();
   }
 
   Updater shared(*this, masks, all_changed, control);
-  struct alignas(64) PaddedCounters {
-    Updater::Counters counters;
-  };
-  PaddedCounters counters[64];
-  HG_CHECK(pool_->num_threads() <= 64);
+  for (int w = 0; w < pool_->num_threads(); ++w) {
+    WorkerScratch& k = scratch_[w];
+    k.visited = k.verdicts = k.pending = 0;
+    k.clock_countdown = 0;
+  }
   // Roots are independent: whichever worker takes a root owns its pool for the pass.
-  auto run = [&](int r, int worker) { shared.UpdateRoot(r, counters[worker].counters); };
+  auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
   pool_->Run(kNumRoots, run);
 
   UpdateStats stats;
   stats.aborted = shared.aborted();
   for (int w = 0; w < pool_->num_threads(); ++w) {
-    stats.nodes_visited += counters[w].counters.visited;
-    stats.verdicts_computed += counters[w].counters.verdicts;
-    stats.nodes_pending += counters[w].counters.pending;
+    stats.nodes_visited += scratch_[w].visited;
+    stats.verdicts_computed += scratch_[w].verdicts;
+    stats.nodes_pending += scratch_[w].pending;
   }
   stats.update_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return stats;
@@ -373,8 +379,10 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
   for (int axis = 0; axis < 3; ++axis) {
     std::uint32_t& i = axis == 0 ? cell.x : axis == 1 ? cell.y : cell.z;
     const common::Box3 box = CellBox(b, cell);
-    if (p_W[axis] < box.min[axis] && i > 0) --i;
-    else if (p_W[axis] > box.max[axis] && i < 7) ++i;
+    if (p_W[axis] < box.min[axis] && i > 0)
+      --i;
+    else if (p_W[axis] > box.max[axis] && i < 7)
+      ++i;
   }
   const RootPool& pool = roots_[cell.x + 8 * cell.y + 64 * cell.z];
   std::uint32_t index = 0;

@@ -145,6 +145,7 @@ class Octree {
     std::vector<std::uint32_t> free_blocks;
   };
   class Updater;
+  struct WorkerScratch;
 
   template <class Fn>
   void VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& cell, Fn& fn) const;
@@ -153,6 +154,7 @@ class Octree {
   std::vector<CameraView> cameras_;
   std::vector<RootPool> roots_;  // 512, x fastest.
   std::unique_ptr<common::WorkerPool> pool_;
+  std::unique_ptr<WorkerScratch[]> scratch_;  // One per worker, cache-line separate.
   // Per camera: version of the quadtree used last; 0 = none (lost or never seen).
   std::vector<std::uint64_t> last_version_;
   std::vector<const silhouette::SilhouetteQuadtree*> last_mask_;

@@ -10,7 +10,8 @@
 namespace hg::silhouette {
 
 common::ImageU8 ReadGreyImage(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw common::ConfigError(path + ": cannot open: no such file");
+  if (!std::filesystem::exists(path))
+    throw common::ConfigError(path + ": cannot open: no such file");
   const cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
   if (m.empty() || m.type() != CV_8UC1) {
     throw common::ConfigError(path + ": not a readable 8-bit image");

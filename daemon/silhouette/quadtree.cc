@@ -44,7 +44,8 @@ SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
   int h = tiles_h_;
   int shift = 0;
   for (;;) {
-    levels_.push_back(Level{w, h, shift, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h)});
+    levels_.push_back(
+        Level{w, h, shift, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h)});
     if (w == 1 && h == 1) break;
     w = (w + 1) / 2;
     h = (h + 1) / 2;
@@ -88,8 +89,8 @@ void SilhouetteQuadtree::Build(const common::ImageViewU8& mask, std::uint8_t thr
       const std::uint64_t diff = first ? row_valid[tx] : (fresh ^ row_words[tx]);
       row_words[tx] = fresh;
       row_changed[tx] = diff;
-      cells[tx] = static_cast<std::uint8_t>(CoverOf(fresh, row_valid[tx]) |
-                                            (diff != 0 ? kChangedBit : 0));
+      cells[tx] =
+          static_cast<std::uint8_t>(CoverOf(fresh, row_valid[tx]) | (diff != 0 ? kChangedBit : 0));
     }
   }
   BuildCoarseLevels();
@@ -129,8 +130,7 @@ void SilhouetteQuadtree::BuildCoarseLevels() {
 }
 
 template <bool kChanged>
-std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect,
-                                         std::uint8_t goal) const {
+std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::uint8_t goal) const {
   struct Item {
     int level, x, y;
   };

@@ -54,9 +54,9 @@ class SilhouetteQuadtree {
 
  private:
   struct Level {
-    int width = 0;   // Elements per row.
-    int height = 0;  // Element rows.
-    int shift = 0;   // Element side in pixels is 8 << shift.
+    int width = 0;                    // Elements per row.
+    int height = 0;                   // Element rows.
+    int shift = 0;                    // Element side in pixels is 8 << shift.
     std::vector<std::uint8_t> cells;  // Cover bits | kChangedBit.
   };
   static constexpr std::uint8_t kChangedBit = 4;
@@ -70,10 +70,10 @@ class SilhouetteQuadtree {
   int tiles_w_;
   int tiles_h_;
   std::uint64_t version_ = 0;
-  std::vector<std::uint64_t> words_;      // Foreground bits per tile.
-  std::vector<std::uint64_t> changed_;    // Changed bits per tile.
-  std::vector<std::uint64_t> valid_;      // Bits inside the image per tile.
-  std::vector<Level> levels_;             // levels_[0]: tiles; last: 1x1.
+  std::vector<std::uint64_t> words_;    // Foreground bits per tile.
+  std::vector<std::uint64_t> changed_;  // Changed bits per tile.
+  std::vector<std::uint64_t> valid_;    // Bits inside the image per tile.
+  std::vector<Level> levels_;           // levels_[0]: tiles; last: 1x1.
 };
 
 }  // namespace hg::silhouette

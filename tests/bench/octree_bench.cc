@@ -30,9 +30,9 @@ struct Rig {
 void BM_OctreeIncremental(benchmark::State& state) {
   const int cams = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(cams, kFrames);
-  octree::Octree tree({s.cell.bounds, static_cast<int>(state.range(1)),
-                       static_cast<int>(state.range(2))},
-                      BenchViews(s));
+  octree::Octree tree(
+      {s.cell.bounds, static_cast<int>(state.range(1)), static_cast<int>(state.range(2))},
+      BenchViews(s));
   Rig rig(s);
   rig.Build(s, 0);
   tree.Update(rig.ptrs);
@@ -68,9 +68,9 @@ BENCHMARK(BM_OctreeIncremental)
 void BM_OctreeFromScratch(benchmark::State& state) {
   const int cams = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(cams, kFrames);
-  octree::Octree tree({s.cell.bounds, static_cast<int>(state.range(1)),
-                       static_cast<int>(state.range(2))},
-                      BenchViews(s));
+  octree::Octree tree(
+      {s.cell.bounds, static_cast<int>(state.range(1)), static_cast<int>(state.range(2))},
+      BenchViews(s));
   Rig rig(s);
   int frame = 0;
   for (auto _ : state) {

@@ -75,8 +75,8 @@ TEST(OctreeOcclusionTest, ObjectSeenOnlyThroughObstacleIsOccluded) {
   naive.Update(ptrs);
   int freed = 0;
   for (int i = 0; i < 200; ++i) {
-    freed += naive.StateAt(scene::SampleInside(hidden, [&] { return u01(rng); })) ==
-             PointState::kFree;
+    freed +=
+        naive.StateAt(scene::SampleInside(hidden, [&] { return u01(rng); })) == PointState::kFree;
   }
   EXPECT_GT(freed, 100);
   EXPECT_GT(tree.Volume(LeafState::kFree), 0.5 * bounds.Volume());

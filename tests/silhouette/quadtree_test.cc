@@ -52,8 +52,8 @@ geometry::PixelRect RandomRect(std::mt19937_64& rng, int w, int h) {
 
 TEST(QuadtreeTest, QueryEqualsDenseMaskOnRandomMasksAndRects) {
   std::mt19937_64 rng(11);
-  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{1, 1}, {7, 5}, {64, 48}, {157, 93},
-                                                             {320, 240}, {1920, 1080}}) {
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{
+           {1, 1}, {7, 5}, {64, 48}, {157, 93}, {320, 240}, {1920, 1080}}) {
     SilhouetteQuadtree tree(w, h);
     common::ImageU8 previous(w, h, 0);
     std::uint8_t previous_threshold = 127;

@@ -31,8 +31,8 @@ ProcessResult Hullguard(const std::string& args) {
   fs::create_directories(dir);
   const fs::path out = dir / ("out" + std::to_string(counter));
   const fs::path err = dir / ("err" + std::to_string(counter++));
-  const std::string cmd = std::string(HG_HULLGUARD_BIN) + " " + args + " >" + out.string() +
-                          " 2>" + err.string();
+  const std::string cmd =
+      std::string(HG_HULLGUARD_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
   const int status = std::system(cmd.c_str());
   ProcessResult r;
   r.code = WEXITSTATUS(status);
@@ -65,7 +65,8 @@ class CarveCliTest : public ::testing::Test {
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   std::string Masks() const {
     std::string s;
-    for (std::size_t i = 0; i < scene_.cameras.size(); ++i) s += " " + Path("m" + std::to_string(i) + ".png");
+    for (std::size_t i = 0; i < scene_.cameras.size(); ++i)
+      s += " " + Path("m" + std::to_string(i) + ".png");
     return s;
   }
   std::string Base() const {
@@ -82,8 +83,10 @@ TEST_F(CarveCliTest, QueryClassifiesPointsInOrder) {
   Eigen::Vector3d inside = std::visit(
       [](const auto& s) -> Eigen::Vector3d {
         using T = std::decay_t<decltype(s)>;
-        if constexpr (std::is_same_v<T, scene::Capsule>) return s.a_W;
-        else return s.centre_W;
+        if constexpr (std::is_same_v<T, scene::Capsule>)
+          return s.a_W;
+        else
+          return s.centre_W;
       },
       *sphere_or_other);
   q << inside.x() << " " << inside.y() << " " << inside.z() << "\n";
@@ -121,9 +124,10 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
     std::string args;
     std::string expect;  // Must appear in stderr.
   };
-  std::ofstream(Path("bad.yaml")) << "cameras:\n  - name: a\n    width: 10\n    height: 10\n"
-                                     "    K: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n    R: [1,0,0,0,1,0,0,0,1]\n"
-                                     "    t: [0, 0, 0]\n    colour: red\n";
+  std::ofstream(Path("bad.yaml"))
+      << "cameras:\n  - name: a\n    width: 10\n    height: 10\n"
+         "    K: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n    R: [1,0,0,0,1,0,0,0,1]\n"
+         "    t: [0, 0, 0]\n    colour: red\n";
   std::ofstream(Path("broken.yaml")) << "cameras: [ {name: a, width: 3\n";
   std::ofstream(Path("rank.yaml")) << "cameras:\n  - name: a\n    width: 160\n    height: 120\n"
                                       "    P: [1, 0, 0, 0, 2, 0, 0, 0, 0, 0, 0, 1]\n";

@@ -68,7 +68,8 @@ void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::Camer
   const Eigen::Vector3d size = b.Size();
   const double px_per_m = 600.0 / std::max(size.x(), size.y());
   const int margin = 40;
-  const int top_w = static_cast<int>(size.x() * px_per_m), top_h = static_cast<int>(size.y() * px_per_m);
+  const int top_w = static_cast<int>(size.x() * px_per_m),
+            top_h = static_cast<int>(size.y() * px_per_m);
   const int side_h = static_cast<int>(size.z() * px_per_m);
   cv::Mat img(std::max(top_h, side_h) + 2 * margin + 30, 2 * top_w + 3 * margin, CV_8UC3,
               cv::Scalar(255, 255, 255));
@@ -128,7 +129,8 @@ void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::Camer
     }
   }
   cv::rectangle(img, top(b.min.x(), b.max.y()), top(b.max.x(), b.min.y()), cv::Scalar(0, 0, 0), 1);
-  cv::rectangle(img, side(b.min.x(), b.max.z()), side(b.max.x(), b.min.z()), cv::Scalar(0, 0, 0), 1);
+  cv::rectangle(img, side(b.min.x(), b.max.z()), side(b.max.x(), b.min.z()), cv::Scalar(0, 0, 0),
+                1);
   for (const auto& cam : cameras) {
     const Eigen::Vector3d c = cam.CentreW();
     cv::circle(img, top(c.x(), c.y()), 6, cv::Scalar(200, 80, 0), cv::FILLED);

@@ -96,10 +96,11 @@ int RunCarve(const CarveFlags& f) {
         job.cameras.size(), job.depth, job.threads,
         static_cast<long long>(r.stats.verdicts_computed));
   } else if (queries.empty()) {
-    std::printf("occupied %.6f m^3, occluded %.6f m^3, free %.6f m^3; %lld leaves, %lld nodes; "
-                "octree %.2f ms, quadtrees %.2f ms\n",
-                occupied, occluded, free_volume, static_cast<long long>(tree.NumLeaves()),
-                static_cast<long long>(tree.NumNodes()), r.stats.update_ms, r.quadtree_ms);
+    std::printf(
+        "occupied %.6f m^3, occluded %.6f m^3, free %.6f m^3; %lld leaves, %lld nodes; "
+        "octree %.2f ms, quadtrees %.2f ms\n",
+        occupied, occluded, free_volume, static_cast<long long>(tree.NumLeaves()),
+        static_cast<long long>(tree.NumNodes()), r.stats.update_ms, r.quadtree_ms);
   }
   return kExitOk;
 }
@@ -111,8 +112,7 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("carve", "Carve a conservative visual hull from masks");
   cmd->add_option("--cameras", flags->cameras, "YAML file with a top-level cameras: list")
       ->required();
-  cmd->add_option("--masks", flags->masks, "One grey mask image per camera, in order")
-      ->required();
+  cmd->add_option("--masks", flags->masks, "One grey mask image per camera, in order")->required();
   cmd->add_option("--bounds", flags->bounds, "XMIN YMIN ZMIN XMAX YMAX ZMAX (m)")
       ->required()
       ->expected(6);

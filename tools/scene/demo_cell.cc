@@ -30,15 +30,15 @@ void AddPerson(const Eigen::Vector3d& base, double heading, double phase, std::v
   const double swing = 0.35 * std::sin(phase);
   const Eigen::Vector3d hip = base + 0.95 * up;
   const Eigen::Vector3d neck = base + 1.45 * up;
-  out->push_back(Capsule{hip, neck, 0.16});                          // Torso.
-  out->push_back(Sphere{base + 1.65 * up, 0.11});                    // Head.
+  out->push_back(Capsule{hip, neck, 0.16});        // Torso.
+  out->push_back(Sphere{base + 1.65 * up, 0.11});  // Head.
   for (int s = -1; s <= 1; s += 2) {
     const Eigen::Vector3d h = hip + 0.1 * s * side;
     const Eigen::Vector3d foot = base + 0.1 * s * side + 0.45 * s * swing * fwd + 0.06 * up;
-    out->push_back(Capsule{h, foot, 0.075});                          // Leg.
+    out->push_back(Capsule{h, foot, 0.075});  // Leg.
     const Eigen::Vector3d shoulder = neck - 0.05 * up + 0.22 * s * side;
     const Eigen::Vector3d hand = shoulder - 0.6 * up - 0.35 * s * swing * fwd + 0.05 * s * side;
-    out->push_back(Capsule{shoulder, hand, 0.05});                    // Arm.
+    out->push_back(Capsule{shoulder, hand, 0.05});  // Arm.
   }
 }
 
@@ -50,12 +50,12 @@ DemoCell MakeDemoCell(const DemoCellOptions& options) {
   cell.bounds.max = Eigen::Vector3d(4, 4, 4);
   const Eigen::Vector3d centre(2, 2, 1.0);
   // Upper corners first (the classic layout), then wall centres lower down.
-  const std::vector<Eigen::Vector3d> eyes = {
-      {-0.3, -0.3, 3.6}, {4.3, 4.3, 3.6}, {4.3, -0.3, 3.6}, {-0.3, 4.3, 3.6},
-      {2.0, -0.4, 2.6},  {2.0, 4.4, 2.6}, {-0.4, 2.0, 2.6}, {4.4, 2.0, 2.6}};
+  const std::vector<Eigen::Vector3d> eyes = {{-0.3, -0.3, 3.6}, {4.3, 4.3, 3.6},  {4.3, -0.3, 3.6},
+                                             {-0.3, 4.3, 3.6},  {2.0, -0.4, 2.6}, {2.0, 4.4, 2.6},
+                                             {-0.4, 2.0, 2.6},  {4.4, 2.0, 2.6}};
   for (int i = 0; i < options.num_cameras && i < static_cast<int>(eyes.size()); ++i) {
-    geometry::CameraModel cam = LookAt(eyes[i], centre, options.width, options.height,
-                                       i < 4 ? 1.45 : 1.55);
+    geometry::CameraModel cam =
+        LookAt(eyes[i], centre, options.width, options.height, i < 4 ? 1.45 : 1.55);
     cam.name = "cam" + std::to_string(i);
     cell.cameras.push_back(cam);
   }
