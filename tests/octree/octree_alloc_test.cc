@@ -1,0 +1,77 @@
+// After warm-up, a frame (quadtree builds and the octree update) allocates nothing.
+// Its own test binary: it replaces the global operator new to count calls.
+#include <atomic>
+#include <cstdlib>
+#include <new>
+
+#include <gtest/gtest.h>
+
+#include "octree/octree.h"
+#include "silhouette/quadtree.h"
+#include "support/random_scene.h"
+
+namespace {
+std::atomic<bool> g_counting{false};
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace hg::octree {
+namespace {
+
+TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
+  testing::RandomSceneOptions opt;
+  opt.num_cameras = 4;
+  opt.num_objects = 3;
+  opt.num_obstacles = 2;
+  testing::RandomScene scene = testing::MakeRandomScene(12, opt);
+  // A looping sequence: 12 frames of moving objects, played three times.
+  std::vector<std::vector<common::ImageU8>> frames;
+  for (int f = 0; f < 12; ++f) {
+    for (auto& obj : scene.objects) {
+      std::visit(
+          [&](auto& s) {
+            using T = std::decay_t<decltype(s)>;
+            const Eigen::Vector3d step(0.04 * std::cos(f * 0.5), 0.03 * std::sin(f * 0.5), 0.0);
+            if constexpr (std::is_same_v<T, scene::Capsule>) {
+              s.a_W += step;
+              s.b_W += step;
+            } else {
+              s.centre_W += step;
+            }
+          },
+          obj);
+    }
+    frames.push_back(testing::RenderMasks(scene.cameras, scene.objects));
+  }
+  std::vector<silhouette::SilhouetteQuadtree> trees;
+  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
+  for (const auto& c : scene.cameras) trees.emplace_back(c.width, c.height);
+  for (const auto& t : trees) ptrs.push_back(&t);
+  Octree tree({scene.bounds, 7, 2}, testing::MakeViews(scene.cameras, scene.obstacles));
+  long allocations_last_pass = -1;
+  std::int64_t visited = 0;
+  for (int pass = 0; pass < 3; ++pass) {
+    g_allocations = 0;
+    for (const auto& masks : frames) {
+      g_counting = pass == 2;
+      for (std::size_t c = 0; c < trees.size(); ++c) trees[c].Build(masks[c].View(), 127);
+      const UpdateStats stats = tree.Update(ptrs);
+      g_counting = false;
+      visited += stats.nodes_visited;
+    }
+    allocations_last_pass = g_allocations.load();
+  }
+  EXPECT_GT(visited, 10000);  // The frames did real work.
+  EXPECT_EQ(allocations_last_pass, 0);
+}
+
+}  // namespace
+}  // namespace hg::octree
