@@ -1,5 +1,7 @@
 #include "octree/camera_view.h"
 
+#include <algorithm>
+
 #include "common/check.h"
 
 namespace hg::octree {
@@ -18,6 +20,16 @@ CameraView::CameraView(const geometry::CameraModel& pinhole,
   centre_max_ = geometry::DepthPyramid(depth_map_.centre_depth, width_, height_,
                                        geometry::DepthPyramid::Kind::kMax);
   has_obstacles_ = near_min_.Global() != geometry::ObstacleDepthMap::kNone;
+  obstacle_rect_ = {width_, height_, -1, -1};
+  for (int v = 0; v < height_; ++v) {
+    for (int u = 0; u < width_; ++u) {
+      if (depth_map_.near_depth[static_cast<std::size_t>(v) * width_ + u] !=
+          geometry::ObstacleDepthMap::kNone) {
+        obstacle_rect_ = {std::min(obstacle_rect_.u0, u), std::min(obstacle_rect_.v0, v),
+                          std::max(obstacle_rect_.u1, u), std::max(obstacle_rect_.v1, v)};
+      }
+    }
+  }
 }
 
 Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
@@ -30,7 +42,10 @@ Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* m
   if (clip.Empty()) return Verdict::kHidden;
   const bool inside = geometry::InsideImage(fp.rect, view.width(), view.height());
   const silhouette::Cover cover = mask->Query(clip);
-  if (view.has_obstacles()) {
+  const geometry::PixelRect& o = view.obstacle_rect();
+  const bool near_obstacle = view.has_obstacles() && clip.u0 <= o.u1 && clip.u1 >= o.u0 &&
+                             clip.v0 <= o.v1 && clip.v1 >= o.v0;
+  if (near_obstacle) {
     if (inside && cover == silhouette::Cover::kBackground &&
         view.near_min().AllGreater(clip, fp.z_far)) {
       return Verdict::kFree;

@@ -25,6 +25,8 @@ class CameraView {
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
   [[nodiscard]] bool has_obstacles() const { return has_obstacles_; }
+  /// Bounding rectangle of the pixels that see an obstacle (empty without).
+  [[nodiscard]] const geometry::PixelRect& obstacle_rect() const { return obstacle_rect_; }
   [[nodiscard]] const geometry::DepthPyramid& near_min() const { return near_min_; }
   [[nodiscard]] const geometry::DepthPyramid& centre_max() const { return centre_max_; }
   [[nodiscard]] const geometry::ObstacleDepthMap& depth_map() const { return depth_map_; }
@@ -34,6 +36,7 @@ class CameraView {
   int width_;
   int height_;
   bool has_obstacles_ = false;
+  geometry::PixelRect obstacle_rect_;
   geometry::ObstacleDepthMap depth_map_;
   geometry::DepthPyramid near_min_;
   geometry::DepthPyramid centre_max_;

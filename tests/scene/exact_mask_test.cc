@@ -213,26 +213,38 @@ bool RayHits(const Shape& shape, const Vector3d& o, const Vector3d& d) {
     }
     return t0 <= t1;
   }
-  // Capsule: the squared distance from a point sliding along the axis to the
-  // ray is convex in the slide parameter; ternary search finds its minimum.
+  // Capsule = two end balls plus the cylinder piece between them.
   const auto& c = std::get<Capsule>(shape);
-  const auto dist2 = [&](double s) {
-    const Vector3d p = c.a_W + s * (c.b_W - c.a_W) - o;
-    const double t = std::max(0.0, p.dot(d));
-    return p.squaredNorm() - t * t;
-  };
-  double lo = 0.0;
-  double hi = 1.0;
-  for (int i = 0; i < 80; ++i) {
-    const double m1 = lo + (hi - lo) / 3.0;
-    const double m2 = hi - (hi - lo) / 3.0;
-    if (dist2(m1) < dist2(m2)) {
-      hi = m2;
-    } else {
-      lo = m1;
-    }
+  const double r = c.radius_m;
+  if (RayHits(Sphere{c.a_W, r}, o, d) || RayHits(Sphere{c.b_W, r}, o, d)) return true;
+  const double length = (c.b_W - c.a_W).norm();
+  if (length == 0.0) return false;
+  const Vector3d axis = (c.b_W - c.a_W) / length;
+  const Vector3d w = o - c.a_W;
+  const Vector3d d_perp = d - d.dot(axis) * axis;
+  const Vector3d w_perp = w - w.dot(axis) * axis;
+  const double qa = d_perp.squaredNorm();
+  if (qa < 1e-18) return false;  // Along the axis: only the end balls can be hit.
+  const double qb = 2.0 * w_perp.dot(d_perp);
+  const double qc = w_perp.squaredNorm() - r * r;
+  const double disc = qb * qb - 4.0 * qa * qc;
+  if (disc < 0.0) return false;
+  // Ray parameters within radius r of the axis line...
+  double t0 = std::max(0.0, (-qb - std::sqrt(disc)) / (2.0 * qa));
+  double t1 = (-qb + std::sqrt(disc)) / (2.0 * qa);
+  // ...and between the end planes (axial coordinate s(t) = s0 + t k in [0, L]).
+  const double s0 = w.dot(axis);
+  const double k = d.dot(axis);
+  if (std::abs(k) < 1e-300) {
+    if (s0 < 0.0 || s0 > length) return false;
+  } else {
+    double ta = -s0 / k;
+    double tb = (length - s0) / k;
+    if (ta > tb) std::swap(ta, tb);
+    t0 = std::max(t0, ta);
+    t1 = std::min(t1, tb);
   }
-  return dist2(0.5 * (lo + hi)) <= c.radius_m * c.radius_m;
+  return t0 <= t1;
 }
 
 // Inverts the lens by fixed-point iteration (a different method from the

@@ -8,6 +8,7 @@
 #include <numbers>
 #include <optional>
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 
 #include "common/check.h"
@@ -93,6 +94,26 @@ struct Simplex {
   int n = 0;
 };
 
+// Closest point to the origin on the affine hull of q[0..M] when it lies in the
+// face (all barycentric weights >= 0); false otherwise or for a flat face.
+template <int M>
+bool AffineClosestPoint(const std::array<const Vector3d*, 4>& q, Vector3d* v) {
+  Eigen::Matrix<double, 3, M> e;
+  for (int j = 0; j < M; ++j) e.col(j) = *q[j + 1] - *q[0];
+  const Eigen::Matrix<double, M, M> gram = e.transpose() * e;
+  const double det = gram.determinant();
+  // A face is usable when its Gram determinant is not negligible next to the
+  // product of its squared edge lengths (the Hadamard bound); flatter faces
+  // are covered by their sub-faces.
+  if (!(det > 1e-14 * gram.diagonal().prod())) return false;
+  const Eigen::Matrix<double, M, 1> mu = -(gram.inverse() * (e.transpose() * *q[0]));
+  if ((mu.array() < -kBarycentricSlack).any() || 1.0 - mu.sum() < -kBarycentricSlack) {
+    return false;
+  }
+  *v = *q[0] + e * mu;
+  return true;
+}
+
 // Closest point to the origin of the convex hull of the simplex. Tries every
 // face (vertex, edge, triangle, tetrahedron): the closest point lies in the
 // relative interior of one of them, where its affine projection has
@@ -103,38 +124,35 @@ Vector3d ClosestPointAndReduce(Simplex* simplex) {
   double best_norm2 = std::numeric_limits<double>::infinity();
   Vector3d best_v = simplex->p[0];
   unsigned best_mask = 1;
-  for (int k = 1; k <= n; ++k) {
-    for (unsigned mask = 1; mask < (1u << n); ++mask) {
-      if (std::popcount(mask) != k) continue;
-      std::array<int, 4> idx{};
-      int count = 0;
-      for (int i = 0; i < n; ++i) {
-        if (mask & (1u << i)) idx[count++] = i;
-      }
-      const Vector3d& q0 = simplex->p[idx[0]];
-      Vector3d v = q0;
-      if (k > 1) {
-        const int m = k - 1;
-        Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 3> e(3, m);
-        for (int j = 0; j < m; ++j) e.col(j) = simplex->p[idx[j + 1]] - q0;
-        const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, 3, 3> gram =
-            e.transpose() * e;
-        const double det = gram.determinant();
-        const double diag_product = gram.diagonal().prod();
-        if (!(det > 1e-14 * diag_product)) continue;  // Degenerate face: a sub-face covers it.
-        const Eigen::Matrix<double, Eigen::Dynamic, 1, 0, 3, 1> mu =
-            gram.partialPivLu().solve(-(e.transpose() * q0));
-        if ((mu.array() < -kBarycentricSlack).any() || 1.0 - mu.sum() < -kBarycentricSlack) {
-          continue;
-        }
-        v = q0 + e * mu;
-      }
-      const double norm2 = v.squaredNorm();
-      if (norm2 < best_norm2) {
-        best_norm2 = norm2;
-        best_v = v;
-        best_mask = mask;
-      }
+  for (unsigned mask = 1; mask < (1u << n); ++mask) {
+    std::array<const Vector3d*, 4> q{};
+    int k = 0;
+    for (int i = 0; i < n; ++i) {
+      if (mask & (1u << i)) q[k++] = &simplex->p[i];
+    }
+    Vector3d v = *q[0];
+    bool valid = true;
+    switch (k) {
+      case 2:
+        valid = AffineClosestPoint<1>(q, &v);
+        break;
+      case 3:
+        valid = AffineClosestPoint<2>(q, &v);
+        break;
+      case 4:
+        valid = AffineClosestPoint<3>(q, &v);
+        break;
+      default:
+        break;
+    }
+    if (!valid) continue;
+    const double norm2 = v.squaredNorm();
+    // Ties go to the face with fewer points, which is better conditioned.
+    if (norm2 < best_norm2 ||
+        (norm2 == best_norm2 && std::popcount(mask) < std::popcount(best_mask))) {
+      best_norm2 = norm2;
+      best_v = v;
+      best_mask = mask;
     }
   }
   int kept = 0;
