@@ -1,5 +1,6 @@
 // Octree update on the benchmark workload: 8 Full HD cameras around a 4 m cube,
 // depth 10 (1024^3 cells), three walking people, table and rack.
+#include <algorithm>
 #include <cmath>
 
 #include <benchmark/benchmark.h>
@@ -26,7 +27,20 @@ struct Rig {
   }
 };
 
-// Incremental update, frame after frame (args: cameras, depth, threads).
+// Median, 99th percentile and maximum of per-frame update times, as counters.
+void ReportFrameTimes(benchmark::State& state, std::vector<double> ms) {
+  std::sort(ms.begin(), ms.end());
+  auto at = [&](double q) {
+    return ms[std::min(ms.size() - 1, static_cast<std::size_t>(q * (ms.size() - 1) + 0.5))];
+  };
+  state.counters["median_ms"] = at(0.5);
+  state.counters["p99_ms"] = at(0.99);
+  state.counters["max_ms"] = ms.back();
+}
+
+// Incremental update, frame after frame (args: cameras, depth, threads). Each
+// iteration is one frame: the quadtrees are rebuilt from the next masks
+// (untimed), then the octree is updated.
 void BM_OctreeIncremental(benchmark::State& state) {
   const int cams = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(cams, kFrames);
@@ -38,33 +52,38 @@ void BM_OctreeIncremental(benchmark::State& state) {
   tree.Update(rig.ptrs);
   int frame = 1;
   double visited = 0;
+  std::vector<double> ms;
   for (auto _ : state) {
     state.PauseTiming();
-    rig.Build(s, frame);
-    frame = (frame + 1) % kFrames;
-    if (frame == 0) {  // Wrap around: start the sequence again from a complete tree.
+    if (frame == kFrames) {  // Wrap around: start again from a complete tree of frame 0.
       rig.Build(s, 0);
       tree.Update(rig.ptrs);
       frame = 1;
-      rig.Build(s, frame);
     }
+    rig.Build(s, frame++);
     state.ResumeTiming();
-    visited += static_cast<double>(tree.Update(rig.ptrs).nodes_visited);
+    const octree::UpdateStats stats = tree.Update(rig.ptrs);
+    ms.push_back(stats.update_ms);
+    visited += static_cast<double>(stats.nodes_visited);
   }
   state.counters["nodes"] = static_cast<double>(tree.NumNodes());
   state.counters["visited_per_frame"] = visited / static_cast<double>(state.iterations());
+  ReportFrameTimes(state, ms);
 }
 BENCHMARK(BM_OctreeIncremental)
+    ->ArgNames({"cams", "depth", "threads"})
     ->Args({8, 10, 1})
     ->Args({8, 10, 2})
     ->Args({4, 10, 2})
     ->Args({8, 9, 2})
     ->Args({8, 8, 2})
+    ->Args({8, 7, 2})
+    ->Iterations(kFrames - 1)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime();
 
-// From scratch: a fresh tree every frame (args: cameras, depth, threads).
+// From scratch: an empty tree and every pixel changed, every frame.
 void BM_OctreeFromScratch(benchmark::State& state) {
   const int cams = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(cams, kFrames);
@@ -73,6 +92,7 @@ void BM_OctreeFromScratch(benchmark::State& state) {
       BenchViews(s));
   Rig rig(s);
   int frame = 0;
+  std::vector<double> ms;
   for (auto _ : state) {
     state.PauseTiming();
     rig.Build(s, frame);
@@ -80,15 +100,21 @@ void BM_OctreeFromScratch(benchmark::State& state) {
     tree.Reset();
     frame = (frame + 1) % kFrames;
     state.ResumeTiming();
-    tree.Update(rig.ptrs);
+    ms.push_back(tree.Update(rig.ptrs).update_ms);
   }
   state.counters["nodes"] = static_cast<double>(tree.NumNodes());
   state.counters["leaves"] = static_cast<double>(tree.NumLeaves());
+  ReportFrameTimes(state, ms);
 }
 BENCHMARK(BM_OctreeFromScratch)
+    ->ArgNames({"cams", "depth", "threads"})
     ->Args({8, 10, 1})
     ->Args({8, 10, 2})
     ->Args({4, 10, 2})
+    ->Args({8, 9, 2})
+    ->Args({8, 8, 2})
+    ->Args({8, 7, 2})
+    ->Iterations(8)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MeasureProcessCPUTime();
