@@ -35,20 +35,8 @@ TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
   // A looping sequence: 12 frames of moving objects, played three times.
   std::vector<std::vector<common::ImageU8>> frames;
   for (int f = 0; f < 12; ++f) {
-    for (auto& obj : scene.objects) {
-      std::visit(
-          [&](auto& s) {
-            using T = std::decay_t<decltype(s)>;
-            const Eigen::Vector3d step(0.04 * std::cos(f * 0.5), 0.03 * std::sin(f * 0.5), 0.0);
-            if constexpr (std::is_same_v<T, scene::Capsule>) {
-              s.a_W += step;
-              s.b_W += step;
-            } else {
-              s.centre_W += step;
-            }
-          },
-          obj);
-    }
+    const Eigen::Vector3d step(0.04 * std::cos(f * 0.5), 0.03 * std::sin(f * 0.5), 0.0);
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
     frames.push_back(testing::RenderMasks(scene.cameras, scene.objects));
   }
   std::vector<silhouette::SilhouetteQuadtree> trees;

@@ -176,19 +176,7 @@ TEST(OctreeSequenceTest, IncrementalEqualsFromScratchAndThreadsAgree) {
   std::mt19937_64 rng(5);
   const Eigen::Vector3d velocity(0.02, -0.015, 0.01);
   for (int frame = 0; frame < 50; ++frame) {
-    for (auto& obj : scene.objects) {
-      std::visit(
-          [&](auto& s) {
-            using T = std::decay_t<decltype(s)>;
-            if constexpr (std::is_same_v<T, scene::Capsule>) {
-              s.a_W += velocity;
-              s.b_W += velocity;
-            } else {
-              s.centre_W += velocity;
-            }
-          },
-          obj);
-    }
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, velocity);
     const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
     qt.Build(masks);
     const UpdateStats inc = incremental.Update(qt.ptrs);
@@ -221,20 +209,8 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
   std::mt19937_64 rng(9);
   int aborted_frames = 0;
   for (int frame = 0; frame < 40; ++frame) {
-    for (auto& obj : scene.objects) {
-      std::visit(
-          [&](auto& s) {
-            using T = std::decay_t<decltype(s)>;
-            const Eigen::Vector3d step(0.03 * std::sin(frame * 0.3), 0.02, -0.01);
-            if constexpr (std::is_same_v<T, scene::Capsule>) {
-              s.a_W += step;
-              s.b_W += step;
-            } else {
-              s.centre_W += step;
-            }
-          },
-          obj);
-    }
+    const Eigen::Vector3d step(0.03 * std::sin(frame * 0.3), 0.02, -0.01);
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
     const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
     qt.Build(masks);
     UpdateControl control;

@@ -8,25 +8,6 @@
 
 namespace hg::testing {
 
-geometry::CameraModel LookAtCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
-                                   int width, int height, double fx) {
-  const Eigen::Vector3d forward = (target - eye).normalized();
-  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-  if (std::abs(forward.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d right = forward.cross(up).normalized();
-  const Eigen::Vector3d down = forward.cross(right);
-  geometry::CameraModel cam;
-  cam.name = "cam";
-  cam.width = width;
-  cam.height = height;
-  cam.K << fx, 0, (width - 1) / 2.0, 0, fx, (height - 1) / 2.0, 0, 0, 1;
-  cam.R_CW.row(0) = right.transpose();
-  cam.R_CW.row(1) = down.transpose();
-  cam.R_CW.row(2) = forward.transpose();
-  cam.t_CW = -cam.R_CW * eye;
-  return cam;
-}
-
 scene::Shape RandomObject(std::mt19937_64& rng, const common::Box3& bounds) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   auto point = [&] {

@@ -12,13 +12,12 @@
 #include "geometry/camera.h"
 #include "geometry/mesh.h"
 #include "octree/camera_view.h"
+#include "scene/demo_cell.h"
 #include "scene/shapes.h"
 
 namespace hg::testing {
 
-/// Pinhole camera at `eye` looking at `target`, z up in the world.
-geometry::CameraModel LookAtCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
-                                   int width, int height, double fx);
+using scene::LookAtCamera;
 
 struct RandomSceneOptions {
   int num_cameras = 4;

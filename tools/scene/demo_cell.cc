@@ -5,23 +5,6 @@
 namespace hg::scene {
 namespace {
 
-geometry::CameraModel LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int width,
-                             int height, double hfov_rad) {
-  const Eigen::Vector3d forward = (target - eye).normalized();
-  const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
-  const Eigen::Vector3d down = forward.cross(right);
-  geometry::CameraModel cam;
-  cam.width = width;
-  cam.height = height;
-  const double f = 0.5 * width / std::tan(0.5 * hfov_rad);
-  cam.K << f, 0, (width - 1) / 2.0, 0, f, (height - 1) / 2.0, 0, 0, 1;
-  cam.R_CW.row(0) = right.transpose();
-  cam.R_CW.row(1) = down.transpose();
-  cam.R_CW.row(2) = forward.transpose();
-  cam.t_CW = -cam.R_CW * eye;
-  return cam;
-}
-
 // A standing person at `base` (floor point) facing `heading`, gait phase `phase`.
 void AddPerson(const Eigen::Vector3d& base, double heading, double phase, std::vector<Shape>* out) {
   const Eigen::Vector3d fwd(std::cos(heading), std::sin(heading), 0);
@@ -44,6 +27,24 @@ void AddPerson(const Eigen::Vector3d& base, double heading, double phase, std::v
 
 }  // namespace
 
+geometry::CameraModel LookAtCamera(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
+                                   int width, int height, double fx) {
+  const Eigen::Vector3d forward = (target - eye).normalized();
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  if (std::abs(forward.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d right = forward.cross(up).normalized();
+  const Eigen::Vector3d down = forward.cross(right);
+  geometry::CameraModel cam;
+  cam.width = width;
+  cam.height = height;
+  cam.K << fx, 0, (width - 1) / 2.0, 0, fx, (height - 1) / 2.0, 0, 0, 1;
+  cam.R_CW.row(0) = right.transpose();
+  cam.R_CW.row(1) = down.transpose();
+  cam.R_CW.row(2) = forward.transpose();
+  cam.t_CW = -cam.R_CW * eye;
+  return cam;
+}
+
 DemoCell MakeDemoCell(const DemoCellOptions& options) {
   DemoCell cell;
   cell.bounds.min = Eigen::Vector3d(0, 0, 0);
@@ -54,8 +55,9 @@ DemoCell MakeDemoCell(const DemoCellOptions& options) {
                                              {-0.3, 4.3, 3.6},  {2.0, -0.4, 2.6}, {2.0, 4.4, 2.6},
                                              {-0.4, 2.0, 2.6},  {4.4, 2.0, 2.6}};
   for (int i = 0; i < options.num_cameras && i < static_cast<int>(eyes.size()); ++i) {
-    geometry::CameraModel cam =
-        LookAt(eyes[i], centre, options.width, options.height, i < 4 ? 1.45 : 1.55);
+    const double hfov_rad = i < 4 ? 1.45 : 1.55;
+    geometry::CameraModel cam = LookAtCamera(eyes[i], centre, options.width, options.height,
+                                             0.5 * options.width / std::tan(0.5 * hfov_rad));
     cam.name = "cam" + std::to_string(i);
     cell.cameras.push_back(cam);
   }

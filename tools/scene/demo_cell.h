@@ -27,6 +27,12 @@ struct DemoCell {
   std::vector<geometry::TriangleMesh> obstacles;
 };
 
+/// Pinhole camera at `eye` looking at `target` (z up in the world; near-vertical
+/// views take y as up), focal length fx pixels, principal point at the centre.
+[[nodiscard]] geometry::CameraModel LookAtCamera(const Eigen::Vector3d& eye,
+                                                 const Eigen::Vector3d& target, int width,
+                                                 int height, double fx);
+
 /// The static part of the cell.
 [[nodiscard]] DemoCell MakeDemoCell(const DemoCellOptions& options);
 

@@ -2,6 +2,7 @@
 /// @file
 /// Analytic solid shapes for generated scenes: spheres, oriented boxes, capsules.
 
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -41,6 +42,21 @@ using Shape = std::variant<Sphere, OrientedBox, Capsule>;
 [[nodiscard]] common::Box3 Bounds(const Shape& shape);
 /// Volume of the shape in m^3.
 [[nodiscard]] double Volume(const Shape& shape);
+
+/// The shape moved by offset_m.
+[[nodiscard]] inline Shape Translated(Shape shape, const Eigen::Vector3d& offset_m) {
+  std::visit(
+      [&](auto& s) {
+        if constexpr (std::is_same_v<std::decay_t<decltype(s)>, Capsule>) {
+          s.a_W += offset_m;
+          s.b_W += offset_m;
+        } else {
+          s.centre_W += offset_m;
+        }
+      },
+      shape);
+  return shape;
+}
 
 /// Uniform random point inside the shape from two uniforms generator `u01`
 /// (called as many times as needed, each returning a double in [0, 1)).
