@@ -34,32 +34,58 @@ struct BoxProjector {
 
   explicit BoxProjector(const Eigen::Matrix<double, 3, 4>& projection) : P(projection) {}
 
+  /// Projects the grid of points (xs[i], ys[j], zs[k]), i, j, k < N, into
+  /// u, v (pixels; meaningful where z > 0) and z (camera depth, m), stored at
+  /// index i + N (j + N k). Every footprint is computed from such a grid, so
+  /// that a box gets bit-identical corners whether it is projected alone or
+  /// as one of the eight children of a 3x3x3 grid.
+  template <int N>
+  void ProjectGrid(const double (&xs)[N], const double (&ys)[N], const double (&zs)[N], double* u,
+                   double* v, double* z) const {
+    double ax[3][N], ay[3][N], az[3][N];
+    for (int r = 0; r < 3; ++r) {
+      for (int i = 0; i < N; ++i) {
+        ax[r][i] = P(r, 0) * xs[i];
+        ay[r][i] = P(r, 1) * ys[i];
+        az[r][i] = P(r, 2) * zs[i] + P(r, 3);
+      }
+    }
+    for (int k = 0; k < N; ++k) {
+      for (int j = 0; j < N; ++j) {
+        for (int i = 0; i < N; ++i) {
+          const int n = i + N * (j + N * k);
+          z[n] = ax[2][i] + ay[2][j] + az[2][k];
+          const double inv = 1.0 / z[n];
+          u[n] = (ax[0][i] + ay[0][j] + az[0][k]) * inv;
+          v[n] = (ax[1][i] + ay[1][j] + az[1][k]) * inv;
+        }
+      }
+    }
+  }
+
   /// Footprint of the box [lo, hi]. Every point of the box projects inside
   /// `rect` when the box lies in front (the projection of a box is the convex
   /// hull of its projected corners).
   [[nodiscard]] Footprint Project(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) const {
-    double u_min = 1e300, u_max = -1e300, v_min = 1e300, v_max = -1e300;
-    double z_min = 1e300, z_max = -1e300;
-    // Row terms for the low and high value of each axis.
-    double ax[3][2], ay[3][2], az[3][2];
-    for (int r = 0; r < 3; ++r) {
-      ax[r][0] = P(r, 0) * lo.x();
-      ax[r][1] = P(r, 0) * hi.x();
-      ay[r][0] = P(r, 1) * lo.y();
-      ay[r][1] = P(r, 1) * hi.y();
-      az[r][0] = P(r, 2) * lo.z() + P(r, 3);
-      az[r][1] = P(r, 2) * hi.z() + P(r, 3);
+    const double xs[2] = {lo.x(), hi.x()}, ys[2] = {lo.y(), hi.y()}, zs[2] = {lo.z(), hi.z()};
+    double u[8], v[8], z[8];
+    ProjectGrid<2>(xs, ys, zs, u, v, z);
+    return FromCorners<2>(u, v, z, 0, 0, 0);
+  }
+
+  /// Footprint of the box whose lowest corner is grid point (i, j, k) of a grid
+  /// projected by ProjectGrid<N>.
+  template <int N>
+  [[nodiscard]] static Footprint FromCorners(const double* u, const double* v, const double* z,
+                                             int i, int j, int k) {
+    int idx[8];
+    for (int c = 0; c < 8; ++c) {
+      idx[c] = (i + (c & 1)) + N * ((j + ((c >> 1) & 1)) + N * (k + ((c >> 2) & 1)));
     }
-    double us[8], vs[8], zs[8];
-    for (int i = 0; i < 8; ++i) {
-      const int bx = i & 1, by = (i >> 1) & 1, bz = (i >> 2) & 1;
-      zs[i] = ax[2][bx] + ay[2][by] + az[2][bz];
-      us[i] = ax[0][bx] + ay[0][by] + az[0][bz];
-      vs[i] = ax[1][bx] + ay[1][by] + az[1][bz];
-    }
-    for (int i = 0; i < 8; ++i) {
-      z_min = std::min(z_min, zs[i]);
-      z_max = std::max(z_max, zs[i]);
+    double z_min = z[idx[0]], z_max = z[idx[0]];
+    for (int c = 1; c < 8; ++c) {
+      z_min = std::min(z_min, z[idx[c]]);
+      z_max = std::max(z_max, z[idx[c]]);
     }
     Footprint f;
     f.z_near = z_min;
@@ -72,14 +98,12 @@ struct BoxProjector {
       f.side = Footprint::Side::kStraddling;
       return f;
     }
-    for (int i = 0; i < 8; ++i) {
-      const double inv = 1.0 / zs[i];
-      const double u = us[i] * inv;
-      const double v = vs[i] * inv;
-      u_min = std::min(u_min, u);
-      u_max = std::max(u_max, u);
-      v_min = std::min(v_min, v);
-      v_max = std::max(v_max, v);
+    double u_min = u[idx[0]], u_max = u[idx[0]], v_min = v[idx[0]], v_max = v[idx[0]];
+    for (int c = 1; c < 8; ++c) {
+      u_min = std::min(u_min, u[idx[c]]);
+      u_max = std::max(u_max, u[idx[c]]);
+      v_min = std::min(v_min, v[idx[c]]);
+      v_max = std::max(v_max, v[idx[c]]);
     }
     // Pixel u covers [u - 0.5, u + 0.5): a coordinate x lies in pixel floor(x + 0.5).
     auto to_pixel = [](double x) {

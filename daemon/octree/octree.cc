@@ -57,6 +57,10 @@ struct alignas(64) Octree::WorkerScratch {
   int clock_countdown = 0;
   // Footprints per tree level, so that a node visit initialises nothing.
   geometry::Footprint footprints[21][Octree::kMaxCameras];
+  // Projected 3x3x3 grids per camera for FinestChildren().
+  double grid_u[Octree::kMaxCameras][27];
+  double grid_v[Octree::kMaxCameras][27];
+  double grid_z[Octree::kMaxCameras][27];
 };
 
 /// One update pass: the per-worker traversal of roots.
@@ -113,8 +117,8 @@ class Octree::Updater {
 
   void FreeChildren(RootPool& pool, std::uint32_t first) {
     for (std::uint32_t i = 0; i < 8; ++i) {
-      const std::uint32_t grandchildren = pool.nodes[first + i].children;
-      if (grandchildren != Node::kNoChildren) FreeChildren(pool, grandchildren);
+      const Node& child = pool.nodes[first + i];
+      if (child.state == kInner) FreeChildren(pool, child.children);
     }
     pool.free_blocks.push_back(first);
   }
@@ -134,14 +138,63 @@ class Octree::Updater {
 
   void MakeLeaf(RootPool& pool, std::uint32_t index, NodeState state) {
     Node& n = pool.nodes[index];
-    if (n.children != Node::kNoChildren) {
-      const std::uint32_t first = n.children;
-      n.children = Node::kNoChildren;
-      FreeChildren(pool, first);
+    const bool had_block = n.state == kInner;
+    const std::uint32_t first = n.children;
+    n.children = Node::kNoChildren;
+    n.state = state;
+    n.flags = 0;
+    if (had_block) FreeChildren(pool, first);
+  }
+
+  // The eight children of a node one level above the finest, evaluated in bulk
+  // and returned packed (2 bits each, LeafState). They share a 3x3x3 grid of
+  // projected points per camera; the cameras in `inherit` are full or hidden
+  // for the parent and therefore for every child.
+  std::uint32_t FinestChildren(const Cell& cell, std::uint32_t inherit, std::uint32_t verdicts,
+                               Counters& k) {
+    const int num_cameras = static_cast<int>(tree_.cameras_.size());
+    const common::Box3 box = CellBox(tree_.config_.bounds, cell);
+    const common::Box3 upper = CellBox(
+        tree_.config_.bounds, {cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1});
+    const double xs[3] = {box.min.x(), upper.min.x(), box.max.x()};
+    const double ys[3] = {box.min.y(), upper.min.y(), box.max.y()};
+    const double zs[3] = {box.min.z(), upper.min.z(), box.max.z()};
+    bool inherited_all_hidden = true;
+    int mixed[kMaxCameras];
+    int num_mixed = 0;
+    for (int c = 0; c < num_cameras; ++c) {
+      if (((inherit >> c) & 1u) != 0) {
+        inherited_all_hidden = inherited_all_hidden && GetVerdict(verdicts, c) == Verdict::kHidden;
+      } else {
+        mixed[num_mixed++] = c;
+        tree_.cameras_[c].projector().ProjectGrid<3>(xs, ys, zs, k.grid_u[c], k.grid_v[c],
+                                                     k.grid_z[c]);
+      }
     }
-    Node& m = pool.nodes[index];
-    m.state = state;
-    m.flags = 0;
+    std::uint32_t packed = 0;
+    for (int i = 0; i < 8; ++i) {
+      const int dx = i & 1, dy = (i >> 1) & 1, dz = (i >> 2) & 1;
+      bool any_free = false;
+      bool all_hidden = inherited_all_hidden;
+      for (int m = 0; m < num_mixed && !any_free; ++m) {
+        const int c = mixed[m];
+        const geometry::Footprint fp = geometry::BoxProjector::FromCorners<3>(
+            k.grid_u[c], k.grid_v[c], k.grid_z[c], dx, dy, dz);
+        bool geometric = false;
+        const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, &geometric);
+        ++k.verdicts;
+        any_free = v == Verdict::kFree;
+        all_hidden = all_hidden && v == Verdict::kHidden;
+      }
+      // At the finest level every cell that is not free is a leaf: occluded
+      // when no camera sees it, occupied otherwise.
+      const LeafState s = any_free     ? LeafState::kFree
+                          : all_hidden ? LeafState::kOccluded
+                                       : LeafState::kOccupied;
+      packed |= static_cast<std::uint32_t>(s) << (2 * i);
+    }
+    k.visited += 8;
+    return packed;
   }
 
   // `inherit` holds the cameras whose verdict on the parent is full or hidden,
@@ -249,10 +302,24 @@ class Octree::Updater {
       return MakeLeaf(pool, index, any_full ? kOccupiedLeaf : kOccludedLeaf);
     }
 
+    std::uint32_t child_inherit = 0;
+    for (int c = 0; c < num_cameras; ++c) {
+      const Verdict v = GetVerdict(node.verdicts, c);
+      if (v == Verdict::kFull || v == Verdict::kHidden) child_inherit |= 1u << c;
+    }
+    if (cell.level + 1 == tree_.config_.depth) {
+      // Children at the finest level: evaluated together, stored in the node.
+      const std::uint32_t packed = FinestChildren(cell, child_inherit, node.verdicts, k);
+      MakeLeaf(pool, index, kPackedInner);
+      Node& n = pool.nodes[index];
+      n.children = packed;
+      return;
+    }
+
     // Mixed: split. Children of a pending node, or new children, are stale.
     bool child_force = recompute_all;
     std::uint32_t first = node.children;
-    if (first == Node::kNoChildren) {
+    if (node.state != kInner) {
       first = AllocateChildren(pool);
       child_force = true;
     }
@@ -261,11 +328,6 @@ class Octree::Updater {
       n.children = first;
       n.state = kInner;
       n.flags = 0;
-    }
-    std::uint32_t child_inherit = 0;
-    for (int c = 0; c < num_cameras; ++c) {
-      const Verdict v = GetVerdict(node.verdicts, c);
-      if (v == Verdict::kFull || v == Verdict::kHidden) child_inherit |= 1u << c;
     }
     std::uint8_t below = 0;
     for (std::uint32_t i = 0; i < 8; ++i) {
@@ -389,6 +451,15 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
   for (;;) {
     const Node& n = pool.nodes[index];
     if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
+    if (n.state == kPackedInner) {
+      const Cell upper{cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1};
+      const common::Box3 ub = CellBox(b, upper);
+      const std::uint32_t dx = p_W.x() >= ub.min.x() ? 1 : 0;
+      const std::uint32_t dy = p_W.y() >= ub.min.y() ? 1 : 0;
+      const std::uint32_t dz = p_W.z() >= ub.min.z() ? 1 : 0;
+      const Cell child{cell.level + 1, 2 * cell.x + dx, 2 * cell.y + dy, 2 * cell.z + dz};
+      return std::make_pair(child, PackedChild(n.children, dx + 2 * dy + 4 * dz));
+    }
     if (n.state != kInner) return std::make_pair(cell, static_cast<LeafState>(n.state));
     // Pick the child whose box holds the point, by the same arithmetic as CellBox.
     const Cell upper{cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1};

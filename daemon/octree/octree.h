@@ -128,14 +128,25 @@ class Octree {
  private:
   struct Node {
     static constexpr std::uint32_t kNoChildren = 0xFFFFFFFFu;
-    std::uint32_t children = kNoChildren;  // First of 8 consecutive nodes in the pool.
+    std::uint32_t children = kNoChildren;  // First of 8 consecutive nodes, or packed leaves.
     std::uint32_t verdicts = 0;            // 2 bits per camera.
     std::uint16_t valid = 0;               // Cameras whose cached verdict is current.
     std::uint16_t geometric = 0;           // Cameras whose kMixed verdict is geometric.
     std::uint8_t state = 0;                // NodeState.
     std::uint8_t flags = 0;                // kPending | kHasPending.
   };
-  enum NodeState : std::uint8_t { kFreeLeaf = 0, kOccupiedLeaf = 1, kOccludedLeaf = 2, kInner = 3 };
+  // kPackedInner: a node one level above the finest whose eight children are
+  // leaves stored in `children`, 2 bits each (LeafState), not as nodes.
+  enum NodeState : std::uint8_t {
+    kFreeLeaf = 0,
+    kOccupiedLeaf = 1,
+    kOccludedLeaf = 2,
+    kInner = 3,
+    kPackedInner = 4
+  };
+  static LeafState PackedChild(std::uint32_t packed, std::uint32_t i) {
+    return static_cast<LeafState>((packed >> (2 * i)) & 3u);
+  }
   static constexpr std::uint8_t kPending = 1;
   static constexpr std::uint8_t kHasPending = 2;
 
@@ -166,6 +177,14 @@ void Octree::VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& 
   const Node& n = pool.nodes[index];
   if ((n.flags & kPending) != 0) {
     fn(cell, LeafState::kOccupied);
+    return;
+  }
+  if (n.state == kPackedInner) {
+    for (std::uint32_t i = 0; i < 8; ++i) {
+      fn(Cell{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
+              2 * cell.z + ((i >> 2) & 1)},
+         PackedChild(n.children, i));
+    }
     return;
   }
   if (n.state != kInner) {

@@ -215,7 +215,7 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
     qt.Build(masks);
     UpdateControl control;
     const bool complete = frame % 7 == 6;
-    if (!complete) control.node_budget = static_cast<std::int64_t>(rng() % 4000);
+    if (!complete) control.node_budget = static_cast<std::int64_t>(rng() % 1500);
     const UpdateStats stats = tree.Update(qt.ptrs, control);
     aborted_frames += stats.aborted;
 
