@@ -5,7 +5,6 @@
 #include <bit>
 #include <cmath>
 #include <limits>
-#include <numbers>
 #include <optional>
 
 #include <Eigen/Geometry>
@@ -52,6 +51,9 @@ class ShapeInCamera {
     return R_CW_ * scene::Support(shape_, R_CW_.transpose() * d_C) + t_CW_;
   }
   [[nodiscard]] Vector3d ToCamera(const Vector3d& p_W) const { return R_CW_ * p_W + t_CW_; }
+  [[nodiscard]] bool ContainsC(const Vector3d& p_C) const {
+    return Contains(shape_, R_CW_.transpose() * (p_C - t_CW_));
+  }
 
  private:
   const Shape& shape_;
@@ -196,6 +198,9 @@ bool CertifiedSeparated(const SetA& a, const SetB& b, double tol, Vector3d* hint
     simplex.p[simplex.n++] = w;
     v = ClosestPointAndReduce(&simplex);
     if (simplex.n == 4) return false;  // The origin lies inside the tetrahedron.
+    // No progress: the simplex is numerically flat around a point next to the
+    // origin, which happens when the sets touch or overlap.
+    if (!(v.squaredNorm() < vv)) return false;
   }
   return false;
 }
@@ -252,32 +257,47 @@ bool Undistort(const std::array<double, 5>& k, const Vector2d& xd, Vector2d* x) 
   return false;
 }
 
-double Cross(const Vector2d& o, const Vector2d& a, const Vector2d& b) {
-  return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
-}
-
-// Convex hull (Andrew's monotone chain), counter-clockwise, into *hull.
-void ConvexHull(std::vector<Vector2d>* points, std::vector<Vector2d>* hull) {
-  std::sort(points->begin(), points->end(), [](const Vector2d& a, const Vector2d& b) {
-    return a.x() < b.x() || (a.x() == b.x() && a.y() < b.y());
-  });
-  hull->clear();
-  const std::size_t n = points->size();
-  if (n < 3) {
-    *hull = *points;
-    return;
+// Convex quadrilateral that contains every sample of an undistorted pixel
+// boundary grown by `margin`. samples[i * kSamplesPerEdge] is the image of
+// corner i, in counter-clockwise order (K and a lens with positive Jacobian
+// keep the square's orientation). Side i is the line through the images of
+// corners i and i+1, pushed outward until no sample lies beyond it, then by
+// the margin; the quad is the intersection of the four half-planes, so it
+// holds hull(samples) + disk(margin). False when the sides do not form a
+// proper convex quadrilateral (nearly parallel neighbours, inverted order):
+// the caller then cannot certify the pixel.
+bool EnclosingQuad(const std::vector<Vector2d>& samples, double margin,
+                   std::vector<Vector2d>* quad) {
+  std::array<Vector2d, 4> normal;
+  std::array<double, 4> offset{};
+  for (int i = 0; i < 4; ++i) {
+    const Vector2d d = samples[((i + 1) % 4) * kSamplesPerEdge] - samples[i * kSamplesPerEdge];
+    const double length = d.norm();
+    if (!(length > 0.0)) return false;
+    normal[i] = Vector2d(d.y(), -d.x()) / length;
+    double h = -std::numeric_limits<double>::infinity();
+    for (const Vector2d& p : samples) h = std::max(h, normal[i].dot(p));
+    offset[i] = h + margin;
   }
-  hull->resize(2 * n);
-  std::size_t k = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    while (k >= 2 && Cross((*hull)[k - 2], (*hull)[k - 1], (*points)[i]) <= 0.0) --k;
-    (*hull)[k++] = (*points)[i];
+  quad->resize(4);
+  for (int i = 0; i < 4; ++i) {
+    const int prev = (i + 3) % 4;
+    // Normals must turn left by a clear angle (here more than ~5 degrees).
+    const double det = normal[prev].x() * normal[i].y() - normal[prev].y() * normal[i].x();
+    if (!(det > 0.09)) return false;
+    // Solve normal[prev] . x = offset[prev], normal[i] . x = offset[i].
+    (*quad)[i] = Vector2d(offset[prev] * normal[i].y() - offset[i] * normal[prev].y(),
+                          normal[prev].x() * offset[i] - normal[i].x() * offset[prev]) /
+                 det;
   }
-  for (std::size_t i = n - 1, lower = k + 1; i-- > 0;) {
-    while (k >= lower && Cross((*hull)[k - 2], (*hull)[k - 1], (*points)[i]) <= 0.0) --k;
-    (*hull)[k++] = (*points)[i];
+  // Vertex i lies on sides i-1 and i, so edge i runs from vertex i to i+1 on
+  // side i; it must run counter-clockwise for the polygon to be the
+  // intersection of the half-planes.
+  for (int i = 0; i < 4; ++i) {
+    const Vector2d tangent(-normal[i].y(), normal[i].x());
+    if (!(((*quad)[(i + 1) % 4] - (*quad)[i]).dot(tangent) > 0.0)) return false;
   }
-  hull->resize(k - 1);
+  return true;
 }
 
 /// Inclusive pixel range examined for one shape.
@@ -346,16 +366,31 @@ struct ShapeView {
   double far = 0.0;       // Beyond every point of the shape, > 0.
   double extent = 0.0;    // Size scale of the shape as seen from C (m).
   bool in_front = false;  // Some point has z > 0.
+  // Depth at which a pixel's inner ray is probed before running GJK: the
+  // middle of the shape's depth range, where a convex shape's cross-section
+  // tends to be widest; 0 disables the probe.
+  double probe_depth = 0.0;
 };
 
 ShapeView MakeShapeView(const Shape& shape, const geometry::CameraModel& camera) {
-  ShapeView view{ShapeInCamera(shape, camera), Bounds(shape), 0.0, 0.0, false};
+  ShapeView view{ShapeInCamera(shape, camera), Bounds(shape), 0.0, 0.0, false, 0.0};
   const double z_max = view.in_camera.Support(Vector3d::UnitZ()).z();
+  const double z_min = view.in_camera.Support(-Vector3d::UnitZ()).z();
   view.in_front = z_max > 0.0;
   view.far = 1.25 * z_max;
+  view.probe_depth = std::max(0.0, 0.5 * (z_min + z_max));
   const Vector3d centre_C = view.in_camera.ToCamera(0.5 * (view.bounds_W.min + view.bounds_W.max));
   view.extent = centre_C.norm() + view.bounds_W.Size().norm();
   return view;
+}
+
+// A point of the pixel's pyramid (on the ray through normalised xy, which lies
+// in the pixel's polygon) inside the shape proves they intersect. Most pixels
+// inside a silhouette are settled by this one Contains call instead of a full
+// GJK run that has to enclose the origin.
+bool ProbeHits(const ShapeView& view, const Vector2d& xy) {
+  return view.probe_depth > 0.0 &&
+         view.in_camera.ContainsC(view.probe_depth * Vector3d(xy.x(), xy.y(), 1.0));
 }
 
 // Separation tolerance for a pyramid whose far polygon reaches normalised
@@ -398,6 +433,10 @@ common::ImageU8 RenderExactMask(const geometry::CameraModel& pinhole,
       Vector3d hint = row_hint;
       for (int u = range.u0; u <= range.u1; ++u) {
         if (mask.At(u, v) != 0) continue;
+        if (ProbeHits(view, Normalised(K_inv, u, v))) {
+          mask.At(u, v) = 255;
+          continue;
+        }
         // Pixel corners in normalised coordinates (a parallelogram for any K).
         square[0] = Normalised(K_inv, u - 0.5, v - 0.5);
         square[1] = Normalised(K_inv, u + 0.5, v - 0.5);
@@ -434,21 +473,17 @@ common::ImageU8 RenderExactDistortedMask(const geometry::CameraModel& camera,
 
   // The rays through a distorted pixel are the undistorted image U(S) of its
   // square S. U(S) is bounded by the curve U(boundary of S); we sample that
-  // curve, take the hull, and grow it by a margin that covers the curve between
-  // samples. Between consecutive samples p, q (chord c) the curve has some
-  // length L; every point x on it has |x-p| + |x-q| <= L, so it lies within
-  // sqrt(L^2 - c^2) / 2 of the chord. At 16 samples per edge a sub-arc spans
-  // 1/16 pixel, over which a lens's inverse map is near affine (L ~ c); even
-  // L <= 2c gives a deviation below (sqrt(3)/2) c, so a margin of the largest
-  // chord over-covers. Growing by a circumscribed octagon per hull vertex keeps
-  // the polygon a superset of hull + disk(margin). The result holds U(S), so
-  // the mask can only gain pixels.
+  // curve and enclose the samples, grown by a margin that covers the curve
+  // between samples. Between consecutive samples p, q (chord c) the curve has
+  // some length L; every point x on it has |x-p| + |x-q| <= L, so it lies
+  // within sqrt(L^2 - c^2) / 2 of the chord. At 16 samples per edge a sub-arc
+  // spans 1/16 pixel, over which a lens's inverse map is near affine (L ~ c);
+  // even L <= 2c gives a deviation below (sqrt(3)/2) c, so a margin of the
+  // largest chord over-covers. The enclosing quad holds U(S), so the mask can
+  // only gain pixels.
   std::vector<Vector2d> samples;
-  std::vector<Vector2d> hull;
-  std::vector<Vector2d> grown;
   std::vector<Vector2d> polygon;
   samples.reserve(4 * kSamplesPerEdge);
-  const double octagon_radius = 1.0 / std::cos(std::numbers::pi / 8.0);
   Pyramid pyramid;
   for (int v = 0; v < camera.height; ++v) {
     for (int u = 0; u < camera.width; ++u) {
@@ -466,32 +501,29 @@ common::ImageU8 RenderExactDistortedMask(const geometry::CameraModel& camera,
           samples.push_back(x);
         }
       }
-      if (!inverted) {
-        // The lens model cannot be inverted here: the camera cannot certify
-        // this pixel as background.
+      double margin = 0.0;
+      for (std::size_t i = 0; inverted && i < samples.size(); ++i) {
+        margin = std::max(margin, (samples[(i + 1) % samples.size()] - samples[i]).norm());
+      }
+      if (!inverted || !EnclosingQuad(samples, margin + kUndistortSlack, &polygon)) {
+        // The lens model cannot be inverted here, or its image of the pixel is
+        // too distorted to enclose: the camera cannot certify this pixel.
         mask.At(u, v) = 255;
         continue;
       }
-      double margin = 0.0;
-      for (std::size_t i = 0; i < samples.size(); ++i) {
-        margin = std::max(margin, (samples[(i + 1) % samples.size()] - samples[i]).norm());
-      }
-      margin += kUndistortSlack;
-      ConvexHull(&samples, &hull);
-      grown.clear();
-      for (const Vector2d& p : hull) {
-        for (int i = 0; i < 8; ++i) {
-          const double angle = (i + 0.5) * std::numbers::pi / 4.0;
-          grown.push_back(p + margin * octagon_radius * Vector2d(std::cos(angle), std::sin(angle)));
-        }
-      }
-      ConvexHull(&grown, &polygon);
       Eigen::AlignedBox2d polygon_box;
       for (const Vector2d& p : polygon) polygon_box.extend(p);
       const double max_xy = MaxAbsCoordinate(polygon);
+      Vector2d inner = Vector2d::Zero();  // Vertex mean: inside the convex polygon.
+      for (const Vector2d& p : polygon) inner += p;
+      inner /= static_cast<double>(polygon.size());
 
       for (std::size_t s = 0; s < views.size(); ++s) {
         if (normalised_bounds[s] && !normalised_bounds[s]->intersects(polygon_box)) continue;
+        if (ProbeHits(views[s], inner)) {
+          mask.At(u, v) = 255;
+          break;
+        }
         pyramid.Set(polygon, views[s].far);
         const double tol = Tolerance(views[s], max_xy);
         if (!CertifiedSeparated(pyramid, views[s].in_camera, tol, &hints[s])) {

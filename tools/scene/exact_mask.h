@@ -31,20 +31,22 @@ namespace hg::scene {
 /// undistortion. Slower; for small images.
 ///
 /// The rays of a distorted pixel are the undistorted image of its square. That
-/// set is replaced by a convex polygon of normalised coordinates that contains
-/// it: 16 boundary samples per edge, each undistorted by Newton's method to a
-/// residual of 1e-12, their convex hull, grown by the largest gap between
-/// consecutive samples (which bounds how far the boundary curve between two
-/// samples can bulge for any lens whose inverse map is smooth at the scale of
-/// 1/16 pixel). The mask is therefore a superset of the exact one: it may gain
-/// pixels whose square the shapes miss by a small fraction of a pixel, never
-/// lose one. Where the lens model cannot be inverted (Newton fails, or lands
-/// where the distortion's Jacobian is not positive, i.e. past a fold of the
-/// polynomial model) the pixel is foreground. Assumes the distortion is
-/// one-to-one over the rays that reach the image, as for a real lens; rays that
-/// the polynomial model folds back into the image from outside the field of
-/// view are not seen. With all distortion coefficients zero this is exactly
-/// RenderExactMask(camera, shapes). Thread-compatible (pure function).
+/// set is replaced by a convex quadrilateral of normalised coordinates that
+/// contains it: 16 boundary samples per edge are undistorted by Newton's method
+/// to a residual of 1e-12; each side of the quad is the line through two
+/// undistorted corners, pushed out past every sample and then by the largest
+/// gap between consecutive samples (which bounds how far the boundary curve
+/// between two samples can bulge for any lens whose inverse map is smooth at
+/// the scale of 1/16 pixel). The mask is therefore a superset of the exact
+/// one: it may gain pixels whose square the shapes miss by a small fraction of
+/// a pixel, never lose one. Where the lens model cannot be inverted (Newton
+/// fails, or lands where the distortion's Jacobian is not positive, i.e. past a
+/// fold of the polynomial model) or the quad degenerates, the pixel is
+/// foreground. Assumes the distortion is one-to-one over the rays that reach
+/// the image, as for a real lens; rays that the polynomial model folds back
+/// into the image from outside the field of view are not seen. With all
+/// distortion coefficients zero this is exactly RenderExactMask(camera,
+/// shapes). Thread-compatible (pure function).
 [[nodiscard]] common::ImageU8 RenderExactDistortedMask(const geometry::CameraModel& camera,
                                                        const std::vector<Shape>& shapes);
 
