@@ -118,9 +118,10 @@ def main(bench_json, doc_path, png_path):
 set terminal pngcairo size 900,560 font ',11'
 set output '{png_path}'
 set title 'hullguard octree update, 8 Full HD cameras, 3 walking people, 2 threads'
-set xlabel 'octree depth (finest cells per axis = 2^depth)'
+set xlabel 'octree depth (finest cells per axis = 2^{depth})'
 set ylabel 'median time per frame (ms)'
 set logscale y
+set yrange [5:*]
 set grid
 set key left top
 set xtics 7,1,10
