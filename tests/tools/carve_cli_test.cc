@@ -27,10 +27,11 @@ struct ProcessResult {
 
 ProcessResult Hullguard(const std::string& args) {
   static int counter = 0;
-  const fs::path dir = fs::temp_directory_path() / ("hg_cli_" + std::to_string(::getpid()));
+  const fs::path dir =
+      fs::temp_directory_path() / (std::string("hg_cli_").append(std::to_string(::getpid())));
   fs::create_directories(dir);
-  const fs::path out = dir / ("out" + std::to_string(counter));
-  const fs::path err = dir / ("err" + std::to_string(counter++));
+  const fs::path out = dir / (std::string("out").append(std::to_string(counter)));
+  const fs::path err = dir / (std::string("err").append(std::to_string(counter++)));
   const std::string cmd =
       std::string(HG_HULLGUARD_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
   const int status = std::system(cmd.c_str());
@@ -58,15 +59,20 @@ class CarveCliTest : public ::testing::Test {
     geometry::WriteCamerasFile(Path("cams.yaml"), scene_.cameras);
     const auto masks = testing::RenderMasks(scene_.cameras, scene_.objects);
     for (std::size_t i = 0; i < masks.size(); ++i) {
-      silhouette::WriteGreyImage(Path("m" + std::to_string(i) + ".png"), masks[i]);
+      silhouette::WriteGreyImage(Path(MaskName(i)), masks[i]);
     }
   }
   void TearDown() override { fs::remove_all(dir_); }
   std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  static std::string MaskName(std::size_t i) {
+    return std::string("m").append(std::to_string(i)).append(".png");
+  }
   std::string Masks() const {
     std::string s;
-    for (std::size_t i = 0; i < scene_.cameras.size(); ++i)
-      s += " " + Path("m" + std::to_string(i) + ".png");
+    for (std::size_t i = 0; i < scene_.cameras.size(); ++i) {
+      s.append(" ");
+      s.append(Path(MaskName(i)));
+    }
     return s;
   }
   std::string Base() const {
@@ -117,6 +123,30 @@ TEST_F(CarveCliTest, JsonAndPly) {
   ply >> magic;
   EXPECT_EQ(magic, "ply");
   EXPECT_GT(fs::file_size(Path("hull.ply")), 100u);
+}
+
+TEST_F(CarveCliTest, KnowledgeFilterIsOffUnlessAskedFor) {
+  const Eigen::Vector3d inside = std::visit(
+      [](const auto& s) -> Eigen::Vector3d {
+        if constexpr (std::is_same_v<std::decay_t<decltype(s)>, scene::Capsule>) {
+          return s.a_W;
+        } else {
+          return s.centre_W;
+        }
+      },
+      scene_.objects[0]);
+  std::ofstream(Path("q.txt")) << inside.x() << " " << inside.y() << " " << inside.z() << "\n";
+  const ProcessResult plain = Hullguard(Base() + " --query " + Path("q.txt"));
+  ASSERT_EQ(plain.code, 0) << plain.err;
+  EXPECT_NE(plain.out.find(" occupied"), std::string::npos) << plain.out;
+  // Every component is smaller than 100 m^3: the filter drops the object.
+  const ProcessResult filtered =
+      Hullguard(Base() + " --query " + Path("q.txt") + " --min-component-m3 100");
+  ASSERT_EQ(filtered.code, 0) << filtered.err;
+  EXPECT_NE(filtered.out.find(" free"), std::string::npos) << filtered.out;
+  const ProcessResult json = Hullguard(Base() + " --json --min-component-m3 100");
+  EXPECT_NE(json.out.find("\"dropped_components\": "), std::string::npos) << json.out;
+  EXPECT_EQ(json.out.find("\"dropped_components\": 0,"), std::string::npos) << json.out;
 }
 
 TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {

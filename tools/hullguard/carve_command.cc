@@ -7,6 +7,7 @@
 #include "geometry/camera_yaml.h"
 #include "hullguard/carve.h"
 #include "hullguard/commands.h"
+#include "octree/knowledge_filter.h"
 #include "octree/ply.h"
 #include "silhouette/mask_io.h"
 
@@ -24,6 +25,7 @@ struct CarveFlags {
   std::string query;
   std::string out;
   bool json = false;
+  double min_component_m3 = 0.0;
 };
 
 std::vector<Eigen::Vector3d> ReadQueryPoints(const std::string& path) {
@@ -79,8 +81,13 @@ int RunCarve(const CarveFlags& f) {
   const CarveResult r = Carve(job);
   const octree::Octree& tree = *r.tree;
   if (!f.out.empty()) octree::WriteOccupiedPly(tree, f.out);
+  // The knowledge filter only changes what queries report; it is off unless asked for.
+  const octree::KnowledgeFilterResult filter =
+      f.min_component_m3 > 0 ? octree::FilterSmallComponents(tree, f.min_component_m3)
+                             : octree::KnowledgeFilterResult{};
   for (const auto& p : queries) {
-    std::printf("%.9g %.9g %.9g %s\n", p.x(), p.y(), p.z(), octree::ToString(tree.StateAt(p)));
+    std::printf("%.9g %.9g %.9g %s\n", p.x(), p.y(), p.z(),
+                octree::ToString(filter.StateAt(tree, p)));
   }
   const double occupied = tree.Volume(octree::LeafState::kOccupied);
   const double occluded = tree.Volume(octree::LeafState::kOccluded);
@@ -90,11 +97,13 @@ int RunCarve(const CarveFlags& f) {
         "{\"occupied_volume_m3\": %.9g, \"occluded_volume_m3\": %.9g, \"free_volume_m3\": %.9g, "
         "\"leaves\": %lld, \"nodes\": %lld, \"update_ms\": %.3f, \"quadtree_ms\": %.3f, "
         "\"undistort_ms\": %.3f, \"cameras\": %zu, \"depth\": %d, \"threads\": %d, "
-        "\"verdicts\": %lld}\n",
+        "\"verdicts\": %lld, \"components\": %d, \"dropped_components\": %d, "
+        "\"dropped_volume_m3\": %.9g}\n",
         occupied, occluded, free_volume, static_cast<long long>(tree.NumLeaves()),
         static_cast<long long>(tree.NumNodes()), r.stats.update_ms, r.quadtree_ms, r.undistort_ms,
         job.cameras.size(), job.depth, job.threads,
-        static_cast<long long>(r.stats.verdicts_computed));
+        static_cast<long long>(r.stats.verdicts_computed), filter.components,
+        filter.dropped_components, filter.dropped_volume_m3);
   } else if (queries.empty()) {
     std::printf(
         "occupied %.6f m^3, occluded %.6f m^3, free %.6f m^3; %lld leaves, %lld nodes; "
@@ -126,6 +135,10 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
   cmd->add_option("--query", flags->query, "Text file of 'x y z' lines to classify");
   cmd->add_option("--out", flags->out, "Write occupied leaves as PLY boxes");
   cmd->add_flag("--json", flags->json, "Print a JSON summary");
+  cmd->add_option("--min-component-m3", flags->min_component_m3,
+                  "Knowledge filter: report occupied components below this volume as free "
+                  "in --query (off: 0)")
+      ->check(CLI::NonNegativeNumber);
   cmd->callback([flags, exit_code] { *exit_code = RunCarve(*flags); });
 }
 
