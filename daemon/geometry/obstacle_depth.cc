@@ -355,6 +355,17 @@ bool AllInRect(const Levels& levels, const PixelRect& rect, AllOk all_ok) {
   // int image sizes give at most 32 levels.
   constexpr int kStackSize = 3 * 32 + 2;
   std::array<Entry, kStackSize> stack;
+  // Small rectangles (footprints of fine octree cells) are read pixel by pixel.
+  if (static_cast<long long>(rect.u1 - rect.u0 + 1) * (rect.v1 - rect.v0 + 1) <= 16) {
+    const auto& base = levels[0];
+    for (int v = rect.v0; v <= rect.v1; ++v) {
+      const float* row = base.values.data() + static_cast<size_t>(v) * base.width;
+      for (int u = rect.u0; u <= rect.u1; ++u) {
+        if (!all_ok(row[u])) return false;
+      }
+    }
+    return true;
+  }
   // One pixel that fails settles the answer: probing a corner first turns the
   // common negative answer into a single look-up.
   if (!all_ok(levels[0].values[static_cast<size_t>(rect.v0) * levels[0].width + rect.u0])) {

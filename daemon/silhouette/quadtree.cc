@@ -201,7 +201,30 @@ std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::u
 }
 
 Cover SilhouetteQuadtree::Query(const geometry::PixelRect& rect) const {
-  return static_cast<Cover>(Descend<false>(rect, 3));
+  // Footprints of fine octree cells span a few pixels: up to 2x2 tiles are read
+  // directly, without the descent.
+  const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
+  if (tu1 - tu0 > 1 || tv1 - tv0 > 1) return static_cast<Cover>(Descend<false>(rect, 3));
+  std::uint8_t acc = 0;
+  for (int ty = tv0; ty <= tv1; ++ty) {
+    for (int tx = tu0; tx <= tu1; ++tx) {
+      const std::size_t t = static_cast<std::size_t>(ty) * tiles_w_ + tx;
+      const std::uint8_t cover = levels_[0].cells[t] & 3;
+      if (cover != 3) {
+        acc |= cover;  // A pure tile: its part of the rect is the same.
+      } else {
+        const int x0 = tx * 8, y0 = ty * 8;
+        const std::uint64_t m =
+            TileMask(std::max(rect.u0, x0) - x0, std::min(rect.u1, x0 + 7) - x0,
+                     std::max(rect.v0, y0) - y0, std::min(rect.v1, y0 + 7) - y0);
+        const std::uint64_t w = words_[t];
+        if ((w & m) != 0) acc |= 2;
+        if ((~w & m) != 0) acc |= 1;
+      }
+      if (acc == 3) return Cover::kMixed;
+    }
+  }
+  return static_cast<Cover>(acc);
 }
 
 bool SilhouetteQuadtree::AnyChanged(const geometry::PixelRect& rect) const {
