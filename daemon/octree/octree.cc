@@ -40,7 +40,7 @@ common::Box3 CellBox(const common::Box3& bounds, const Cell& cell) {
   const Eigen::Vector3d extent = bounds.max - bounds.min;
   auto at = [&](int axis, std::uint32_t i) {
     // The last cell ends exactly at the bound, whatever the rounding.
-    if ((static_cast<std::uint64_t>(i) << 0) == (1ULL << cell.level)) return bounds.max[axis];
+    if (static_cast<std::uint64_t>(i) == (1ULL << cell.level)) return bounds.max[axis];
     return bounds.min[axis] + extent[axis] * (static_cast<double>(i) * scale);
   };
   common::Box3 b;
