@@ -137,8 +137,9 @@ void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::Camer
     cv::circle(img, side(c.x(), c.z()), 6, cv::Scalar(200, 80, 0), cv::FILLED);
   }
   cv::putText(img, "top view (x right, y up); red: occupied, grey: occluded, blue: cameras",
-              cv::Point(margin, 22), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1);
-  cv::putText(img, "side view (x right, z up)", cv::Point(2 * margin + top_w, 22),
+              cv::Point(margin, img.rows - 12), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0),
+              1);
+  cv::putText(img, "side view (x right, z up)", cv::Point(2 * margin + top_w, img.rows - 12),
               cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1);
   bool ok = false;
   try {
