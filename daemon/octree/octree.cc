@@ -56,7 +56,7 @@ struct alignas(64) Octree::WorkerScratch {
   std::int64_t pending = 0;
   int clock_countdown = 0;
   // Footprints per tree level, so that a node visit initialises nothing.
-  geometry::Footprint footprints[21][Octree::kMaxCameras];
+  geometry::Footprint footprints[Octree::kMaxDepth + 1][Octree::kMaxCameras];
   // Projected 3x3x3 grids per camera for FinestChildren().
   double grid_u[Octree::kMaxCameras][27];
   double grid_v[Octree::kMaxCameras][27];
@@ -351,7 +351,7 @@ class Octree::Updater {
 Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
     : config_(config), cameras_(std::move(cameras)) {
   HG_CHECK(config_.bounds.IsValid());
-  HG_CHECK(config_.depth >= kRootLevel && config_.depth <= 20);
+  HG_CHECK(config_.depth >= kRootLevel && config_.depth <= kMaxDepth);
   HG_CHECK(config_.num_threads >= 1);
   HG_CHECK(config_.boundary_coarsening >= 0);
   HG_CHECK(static_cast<int>(cameras_.size()) <= kMaxCameras);

@@ -20,7 +20,7 @@ namespace hg::octree {
 /// Octree settings. Plain struct with defaults in line.
 struct OctreeConfig {
   common::Box3 bounds;  ///< Surveillance volume (m).
-  int depth = 10;       ///< Finest cells are bounds / 2^depth; depth 3 is the 8x8x8 roots.
+  int depth = 10;       ///< Finest cells are bounds / 2^depth; 3 (the 8x8x8 roots) to 19.
   int num_threads = 1;  ///< Worker threads for the update (the caller's thread included).
   /// Boxes that are mixed only through geometry (the edge of a camera's view,
   /// the depth of an obstacle, but background everywhere in the silhouettes)
@@ -89,6 +89,9 @@ class Octree {
  public:
   static constexpr int kMaxCameras = 16;
   static constexpr int kRootLevel = 3;
+  /// Deepest supported tree: cell coordinates of 19 bits each pack into one
+  /// 64-bit key with the level (knowledge filter).
+  static constexpr int kMaxDepth = 19;
 
   Octree(const OctreeConfig& config, std::vector<CameraView> cameras);
   ~Octree();
