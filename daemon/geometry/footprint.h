@@ -78,10 +78,9 @@ struct BoxProjector {
   template <int N>
   [[nodiscard]] static Footprint FromCorners(const double* u, const double* v, const double* z,
                                              int i, int j, int k) {
-    int idx[8];
-    for (int c = 0; c < 8; ++c) {
-      idx[c] = (i + (c & 1)) + N * ((j + ((c >> 1) & 1)) + N * (k + ((c >> 2) & 1)));
-    }
+    const int base = i + N * (j + N * k);
+    const int idx[8] = {base,         base + 1,         base + N,         base + N + 1,
+                        base + N * N, base + N * N + 1, base + N * N + N, base + N * N + N + 1};
     double z_min = z[idx[0]], z_max = z[idx[0]];
     for (int c = 1; c < 8; ++c) {
       z_min = std::min(z_min, z[idx[c]]);
