@@ -159,12 +159,12 @@ class Octree::Updater {
     const double xs[3] = {box.min.x(), upper.min.x(), box.max.x()};
     const double ys[3] = {box.min.y(), upper.min.y(), box.max.y()};
     const double zs[3] = {box.min.z(), upper.min.z(), box.max.z()};
-    bool inherited_all_hidden = true;
+    bool inherited_full = false;
     int mixed[kMaxCameras];
     int num_mixed = 0;
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) {
-        inherited_all_hidden = inherited_all_hidden && GetVerdict(verdicts, c) == Verdict::kHidden;
+        inherited_full = inherited_full || GetVerdict(verdicts, c) == Verdict::kFull;
       } else {
         mixed[num_mixed++] = c;
         tree_.cameras_[c].projector().ProjectGrid<3>(xs, ys, zs, k.grid_u[c], k.grid_v[c],
@@ -175,7 +175,7 @@ class Octree::Updater {
     for (int i = 0; i < 8; ++i) {
       const int dx = i & 1, dy = (i >> 1) & 1, dz = (i >> 2) & 1;
       bool any_free = false;
-      bool all_hidden = inherited_all_hidden;
+      bool sees_foreground = inherited_full;  // Some camera full or mixed in its silhouette.
       for (int m = 0; m < num_mixed && !any_free; ++m) {
         const int c = mixed[m];
         const geometry::Footprint fp = geometry::BoxProjector::FromCorners<3>(
@@ -184,15 +184,17 @@ class Octree::Updater {
         const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, &geometric);
         ++k.verdicts;
         any_free = v == Verdict::kFree;
-        all_hidden = all_hidden && v == Verdict::kHidden;
+        sees_foreground = sees_foreground || v == Verdict::kFull ||
+                          (v == Verdict::kMixed && !geometric);
         // Neighbouring children tend to be freed by the same camera: try it first.
         if (any_free) std::swap(mixed[0], mixed[m]);
       }
-      // At the finest level every cell that is not free is a leaf: occluded
-      // when no camera sees it, occupied otherwise.
-      const LeafState s = any_free     ? LeafState::kFree
-                          : all_hidden ? LeafState::kOccluded
-                                       : LeafState::kOccupied;
+      // At the finest level every cell that is not free is a leaf: occupied when
+      // some camera sees foreground in it, occluded otherwise (hidden, or mixed
+      // only through geometry), as in Visit().
+      const LeafState s = any_free          ? LeafState::kFree
+                          : sees_foreground ? LeafState::kOccupied
+                                            : LeafState::kOccluded;
       packed |= static_cast<std::uint32_t>(s) << (2 * i);
     }
     k.visited += 8;
@@ -297,12 +299,13 @@ class Octree::Updater {
     }
     if (any_free) return MakeLeaf(pool, index, kFreeLeaf);
     if (num_cameras == 0 || all_hidden) return MakeLeaf(pool, index, kOccludedLeaf);
-    if ((!mask_mixed && !geometric_mixed) || cell.level >= tree_.config_.depth) {
-      return MakeLeaf(pool, index, kOccupiedLeaf);
-    }
-    if (!mask_mixed && cell.level >= boundary_depth_) {
+    if (!mask_mixed && !geometric_mixed) return MakeLeaf(pool, index, kOccupiedLeaf);
+    // Mixed only through geometry: where it stops, an occluded leaf unless some
+    // camera sees foreground in it (then it may hold a person in view).
+    if (!mask_mixed && (cell.level >= boundary_depth_ || cell.level >= tree_.config_.depth)) {
       return MakeLeaf(pool, index, any_full ? kOccupiedLeaf : kOccludedLeaf);
     }
+    if (cell.level >= tree_.config_.depth) return MakeLeaf(pool, index, kOccupiedLeaf);
 
     std::uint32_t child_inherit = 0;
     for (int c = 0; c < num_cameras; ++c) {

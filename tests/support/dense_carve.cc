@@ -9,10 +9,12 @@ namespace {
 
 using octree::Verdict;
 
+// `*sees_foreground`: the camera is full, or mixed through its silhouette.
 Verdict OracleVerdict(const geometry::CameraModel& cam, const geometry::BoxProjector& proj,
                       const common::ImageU8* mask, const geometry::ObstacleDepthMap* depth,
-                      const common::Box3& box) {
+                      const common::Box3& box, bool* sees_foreground) {
   using Side = geometry::Footprint::Side;
+  *sees_foreground = false;
   const geometry::Footprint fp = proj.Project(box.min, box.max);
   if (mask == nullptr || fp.side == Side::kBehind) return Verdict::kHidden;
   if (fp.side == Side::kStraddling) return Verdict::kMixed;
@@ -36,6 +38,7 @@ Verdict OracleVerdict(const geometry::CameraModel& cam, const geometry::BoxProje
   }
   if (inside && !has_fg && near_min > fp.z_far) return Verdict::kFree;
   if (depth != nullptr && centre_max < fp.z_near) return Verdict::kHidden;
+  *sees_foreground = has_fg;
   return has_bg ? Verdict::kMixed : Verdict::kFull;
 }
 
@@ -55,16 +58,21 @@ DenseGrid DenseCarve(const common::Box3& bounds, int depth,
     for (std::uint32_t y = 0; y < n; ++y) {
       for (std::uint32_t x = 0; x < n; ++x) {
         const common::Box3 box = octree::CellBox(bounds, {depth, x, y, z});
-        bool any_free = false, all_hidden = true;
+        // Free when a camera certifies it; occupied when a camera sees foreground
+        // in it; occluded otherwise (every camera hidden, or mixed only through
+        // geometry: the edge of its view or an obstacle's depth).
+        bool any_free = false, any_foreground = false;
         for (std::size_t c = 0; c < cameras.size() && !any_free; ++c) {
-          const Verdict v = OracleVerdict(cameras[c], projectors[c], masks[c],
-                                          depth_maps.empty() ? nullptr : &depth_maps[c], box);
+          bool foreground = false;
+          const Verdict v =
+              OracleVerdict(cameras[c], projectors[c], masks[c],
+                            depth_maps.empty() ? nullptr : &depth_maps[c], box, &foreground);
           any_free = v == Verdict::kFree;
-          all_hidden = all_hidden && v == Verdict::kHidden;
+          any_foreground = any_foreground || (foreground && v != Verdict::kHidden);
         }
-        const octree::LeafState s = any_free     ? octree::LeafState::kFree
-                                    : all_hidden ? octree::LeafState::kOccluded
-                                                 : octree::LeafState::kOccupied;
+        const octree::LeafState s = any_free         ? octree::LeafState::kFree
+                                    : any_foreground ? octree::LeafState::kOccupied
+                                                     : octree::LeafState::kOccluded;
         grid.states[grid.Index(x, y, z)] = static_cast<std::uint8_t>(s);
       }
     }

@@ -125,6 +125,29 @@ TEST_F(CarveCliTest, JsonAndPly) {
   EXPECT_GT(fs::file_size(Path("hull.ply")), 100u);
 }
 
+double JsonNumber(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\": ");
+  EXPECT_NE(at, std::string::npos) << key << " in " << json;
+  return at == std::string::npos ? 0.0 : std::stod(json.substr(at + key.size() + 4));
+}
+
+TEST_F(CarveCliTest, ExactBoundariesOnlyAddFreeSpace) {
+  // One camera: much of the cell lies outside its view, so the edge of the view
+  // is a large static boundary.
+  geometry::WriteCamerasFile(Path("one.yaml"), {scene_.cameras[0]});
+  const std::string base = "carve --cameras " + Path("one.yaml") + " --masks " + Path(MaskName(0)) +
+                           " --bounds 0 0 0 2 2 2 --depth 6 --json";
+  const ProcessResult coarse = Hullguard(base);
+  const ProcessResult exact = Hullguard(base + " --boundary-coarsening 0");
+  ASSERT_EQ(coarse.code, 0) << coarse.err;
+  ASSERT_EQ(exact.code, 0) << exact.err;
+  EXPECT_GT(JsonNumber(coarse.out, "occluded_volume_m3"), 0.5) << coarse.out;
+  EXPECT_GT(JsonNumber(exact.out, "free_volume_m3"), JsonNumber(coarse.out, "free_volume_m3"))
+      << coarse.out << "\n"
+      << exact.out;
+  EXPECT_GT(JsonNumber(exact.out, "leaves"), JsonNumber(coarse.out, "leaves"));
+}
+
 TEST_F(CarveCliTest, KnowledgeFilterIsOffUnlessAskedFor) {
   const Eigen::Vector3d inside = std::visit(
       [](const auto& s) -> Eigen::Vector3d {

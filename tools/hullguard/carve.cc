@@ -44,7 +44,8 @@ CarveResult Carve(const CarveJob& job) {
   views.reserve(pinholes.size());
   for (const auto& cam : pinholes) views.emplace_back(cam, job.obstacles);
   out.tree = std::make_unique<octree::Octree>(
-      octree::OctreeConfig{job.bounds, job.depth, job.threads}, std::move(views));
+      octree::OctreeConfig{job.bounds, job.depth, job.threads, job.boundary_coarsening},
+      std::move(views));
   out.setup_ms = MsSince(t0);
 
   t0 = Clock::now();

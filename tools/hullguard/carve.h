@@ -21,6 +21,8 @@ struct CarveJob {
   common::Box3 bounds;
   int depth = 8;
   int threads = 1;
+  /// See octree::OctreeConfig::boundary_coarsening; 0 resolves view and obstacle edges exactly.
+  int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   std::uint8_t threshold = 127;  ///< Foreground iff grey value > threshold.
   std::vector<geometry::TriangleMesh> obstacles;
 };

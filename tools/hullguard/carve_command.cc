@@ -1,4 +1,5 @@
 // `hullguard carve`: masks + calibrated cameras -> conservative octree.
+#include <algorithm>
 #include <cstdio>
 #include <fstream>
 #include <sstream>
@@ -20,6 +21,7 @@ struct CarveFlags {
   std::vector<double> bounds;
   int depth = 8;
   int threads = 1;
+  int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   int threshold = 127;
   std::string obstacles;
   std::string query;
@@ -73,6 +75,7 @@ int RunCarve(const CarveFlags& f) {
   }
   job.depth = f.depth;
   job.threads = f.threads;
+  job.boundary_coarsening = std::min(f.boundary_coarsening, f.depth - octree::Octree::kRootLevel);
   job.threshold = static_cast<std::uint8_t>(f.threshold);
   if (!f.obstacles.empty()) job.obstacles.push_back(geometry::LoadObj(f.obstacles));
   const std::vector<Eigen::Vector3d> queries =
@@ -129,6 +132,10 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
       ->required()
       ->check(CLI::Range(3, 16));
   cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
+  cmd->add_option("--boundary-coarsening", flags->boundary_coarsening,
+                  "Levels above --depth at which the static edges of the cameras' views and of "
+                  "obstacles stop (0: exact)")
+      ->check(CLI::Range(0, 16));
   cmd->add_option("--threshold", flags->threshold, "Foreground iff grey value > T")
       ->check(CLI::Range(0, 254));
   cmd->add_option("--obstacles", flags->obstacles, "Static obstacles as an OBJ mesh");
