@@ -184,8 +184,8 @@ class Octree::Updater {
         const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, &geometric);
         ++k.verdicts;
         any_free = v == Verdict::kFree;
-        sees_foreground = sees_foreground || v == Verdict::kFull ||
-                          (v == Verdict::kMixed && !geometric);
+        sees_foreground =
+            sees_foreground || v == Verdict::kFull || (v == Verdict::kMixed && !geometric);
         // Neighbouring children tend to be freed by the same camera: try it first.
         if (any_free) std::swap(mixed[0], mixed[m]);
       }
