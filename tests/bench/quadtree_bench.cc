@@ -4,6 +4,7 @@
 
 #include "bench/bench_scene.h"
 #include "silhouette/quadtree.h"
+#include "silhouette/undistort.h"
 
 namespace hg::bench {
 namespace {
@@ -32,6 +33,26 @@ void BM_QuadtreeBuild1080p(benchmark::State& state) {
   state.SetBytesProcessed(state.iterations() * 1920 * 1080);
 }
 BENCHMARK(BM_QuadtreeBuild1080p)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace hg::bench
+
+namespace hg::bench {
+namespace {
+
+// Conservative undistortion of a Full HD mask through a typical wide-angle lens.
+void BM_UndistortApply1080p(benchmark::State& state) {
+  const BenchScene& s = GetBenchScene(1, 2);
+  geometry::CameraModel cam = s.cell.cameras[0];
+  cam.distortion = {-0.12, 0.03, 0.0005, -0.0005, 0.0};
+  const silhouette::ConservativeUndistorter undistort(cam);
+  common::ImageU8 out(cam.width, cam.height);
+  for (auto _ : state) {
+    undistort.Apply(s.frames[0][0].View(), 127, &out);
+    benchmark::ClobberMemory();
+  }
+}
+BENCHMARK(BM_UndistortApply1080p)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace hg::bench
