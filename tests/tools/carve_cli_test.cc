@@ -113,7 +113,8 @@ TEST_F(CarveCliTest, QueryClassifiesPointsInOrder) {
 }
 
 TEST_F(CarveCliTest, JsonAndPly) {
-  const ProcessResult r = Hullguard(Base() + " --threads 2 --json --out " + Path("hull.ply"));
+  const ProcessResult r = Hullguard(Base() + " --threads 2 --json --out " + Path("hull.ply") +
+                                    " --snapshot " + Path("view.png"));
   ASSERT_EQ(r.code, 0) << r.err;
   for (const char* key : {"\"occupied_volume_m3\"", "\"leaves\"", "\"nodes\"", "\"update_ms\""}) {
     EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
@@ -123,6 +124,8 @@ TEST_F(CarveCliTest, JsonAndPly) {
   ply >> magic;
   EXPECT_EQ(magic, "ply");
   EXPECT_GT(fs::file_size(Path("hull.ply")), 100u);
+  const common::ImageU8 picture = silhouette::ReadGreyImage(Path("view.png"));
+  EXPECT_GT(picture.width, 600);
 }
 
 double JsonNumber(const std::string& json, const std::string& key) {

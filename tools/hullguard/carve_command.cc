@@ -26,6 +26,7 @@ struct CarveFlags {
   std::string obstacles;
   std::string query;
   std::string out;
+  std::string snapshot;
   bool json = false;
   double min_component_m3 = 0.0;
 };
@@ -84,6 +85,7 @@ int RunCarve(const CarveFlags& f) {
   const CarveResult r = Carve(job);
   const octree::Octree& tree = *r.tree;
   if (!f.out.empty()) octree::WriteOccupiedPly(tree, f.out);
+  if (!f.snapshot.empty()) WriteSnapshot(tree, job.cameras, job.obstacles, f.snapshot);
   // The knowledge filter only changes what queries report; it is off unless asked for.
   const octree::KnowledgeFilterResult filter =
       f.min_component_m3 > 0 ? octree::FilterSmallComponents(tree, f.min_component_m3)
@@ -141,6 +143,7 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
   cmd->add_option("--obstacles", flags->obstacles, "Static obstacles as an OBJ mesh");
   cmd->add_option("--query", flags->query, "Text file of 'x y z' lines to classify");
   cmd->add_option("--out", flags->out, "Write occupied leaves as PLY boxes");
+  cmd->add_option("--snapshot", flags->snapshot, "Write a PNG: top and side view of the result");
   cmd->add_flag("--json", flags->json, "Print a JSON summary");
   cmd->add_option("--min-component-m3", flags->min_component_m3,
                   "Knowledge filter: report occupied components below this volume as free "
