@@ -19,7 +19,6 @@ CameraView::CameraView(const geometry::CameraModel& pinhole,
                                      geometry::DepthPyramid::Kind::kMin);
   centre_max_ = geometry::DepthPyramid(depth_map_.centre_depth, width_, height_,
                                        geometry::DepthPyramid::Kind::kMax);
-  has_obstacles_ = near_min_.Global() != geometry::ObstacleDepthMap::kNone;
   obstacle_rect_ = {width_, height_, -1, -1};
   for (int v = 0; v < height_; ++v) {
     for (int u = 0; u < width_; ++u) {
@@ -42,9 +41,10 @@ Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* m
   if (clip.Empty()) return Verdict::kHidden;
   const bool inside = geometry::InsideImage(fp.rect, view.width(), view.height());
   const silhouette::Cover cover = mask->Query(clip);
+  // Outside the obstacles' rectangle (empty without obstacles) no pixel sees one.
   const geometry::PixelRect& o = view.obstacle_rect();
-  const bool near_obstacle = view.has_obstacles() && clip.u0 <= o.u1 && clip.u1 >= o.u0 &&
-                             clip.v0 <= o.v1 && clip.v1 >= o.v0;
+  const bool near_obstacle =
+      clip.u0 <= o.u1 && clip.u1 >= o.u0 && clip.v0 <= o.v1 && clip.v1 >= o.v0;
   if (near_obstacle) {
     if (inside && cover == silhouette::Cover::kBackground &&
         view.near_min().AllGreater(clip, fp.z_far)) {

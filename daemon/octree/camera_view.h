@@ -24,7 +24,7 @@ class CameraView {
   [[nodiscard]] const geometry::BoxProjector& projector() const { return projector_; }
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
-  [[nodiscard]] bool has_obstacles() const { return has_obstacles_; }
+  [[nodiscard]] bool has_obstacles() const { return !obstacle_rect_.Empty(); }
   /// Bounding rectangle of the pixels that see an obstacle (empty without).
   [[nodiscard]] const geometry::PixelRect& obstacle_rect() const { return obstacle_rect_; }
   [[nodiscard]] const geometry::DepthPyramid& near_min() const { return near_min_; }
@@ -35,7 +35,6 @@ class CameraView {
   geometry::BoxProjector projector_;
   int width_;
   int height_;
-  bool has_obstacles_ = false;
   geometry::PixelRect obstacle_rect_;
   geometry::ObstacleDepthMap depth_map_;
   geometry::DepthPyramid near_min_;

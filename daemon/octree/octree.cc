@@ -154,8 +154,7 @@ class Octree::Updater {
                                Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
     const common::Box3 box = CellBox(tree_.config_.bounds, cell);
-    const common::Box3 upper = CellBox(
-        tree_.config_.bounds, {cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1});
+    const common::Box3 upper = CellBox(tree_.config_.bounds, cell.Child(7));
     const double xs[3] = {box.min.x(), upper.min.x(), box.max.x()};
     const double ys[3] = {box.min.y(), upper.min.y(), box.max.y()};
     const double zs[3] = {box.min.z(), upper.min.z(), box.max.z()};
@@ -336,8 +335,7 @@ class Octree::Updater {
     }
     std::uint8_t below = 0;
     for (std::uint32_t i = 0; i < 8; ++i) {
-      const Cell child{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
-                       2 * cell.z + ((i >> 2) & 1)};
+      const Cell child = cell.Child(i);
       Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, k);
       below |= pool.nodes[first + i].flags;
     }
@@ -456,24 +454,16 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
   for (;;) {
     const Node& n = pool.nodes[index];
     if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
-    if (n.state == kPackedInner) {
-      const Cell upper{cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1};
-      const common::Box3 ub = CellBox(b, upper);
-      const std::uint32_t dx = p_W.x() >= ub.min.x() ? 1 : 0;
-      const std::uint32_t dy = p_W.y() >= ub.min.y() ? 1 : 0;
-      const std::uint32_t dz = p_W.z() >= ub.min.z() ? 1 : 0;
-      const Cell child{cell.level + 1, 2 * cell.x + dx, 2 * cell.y + dy, 2 * cell.z + dz};
-      return std::make_pair(child, PackedChild(n.children, dx + 2 * dy + 4 * dz));
+    if (n.state != kInner && n.state != kPackedInner) {
+      return std::make_pair(cell, static_cast<LeafState>(n.state));
     }
-    if (n.state != kInner) return std::make_pair(cell, static_cast<LeafState>(n.state));
     // Pick the child whose box holds the point, by the same arithmetic as CellBox.
-    const Cell upper{cell.level + 1, 2 * cell.x + 1, 2 * cell.y + 1, 2 * cell.z + 1};
-    const common::Box3 ub = CellBox(b, upper);
-    const std::uint32_t dx = p_W.x() >= ub.min.x() ? 1 : 0;
-    const std::uint32_t dy = p_W.y() >= ub.min.y() ? 1 : 0;
-    const std::uint32_t dz = p_W.z() >= ub.min.z() ? 1 : 0;
-    cell = {cell.level + 1, 2 * cell.x + dx, 2 * cell.y + dy, 2 * cell.z + dz};
-    index = n.children + dx + 2 * dy + 4 * dz;
+    const common::Box3 upper = CellBox(b, cell.Child(7));
+    const std::uint32_t i = (p_W.x() >= upper.min.x() ? 1 : 0) |
+                            (p_W.y() >= upper.min.y() ? 2 : 0) | (p_W.z() >= upper.min.z() ? 4 : 0);
+    if (n.state == kPackedInner) return std::make_pair(cell.Child(i), PackedChild(n.children, i));
+    cell = cell.Child(i);
+    index = n.children + i;
   }
 }
 

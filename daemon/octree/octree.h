@@ -48,6 +48,10 @@ struct Cell {
   int level = 0;
   std::uint32_t x = 0, y = 0, z = 0;
   friend bool operator==(const Cell&, const Cell&) = default;
+  /// Child i (bit 0: upper x half, bit 1: upper y, bit 2: upper z).
+  [[nodiscard]] Cell Child(std::uint32_t i) const {
+    return {level + 1, 2 * x + (i & 1), 2 * y + ((i >> 1) & 1), 2 * z + ((i >> 2) & 1)};
+  }
 };
 
 /// The box of a cell. Adjacent cells share bit-identical faces, and a child's box
@@ -184,9 +188,7 @@ void Octree::VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& 
   }
   if (n.state == kPackedInner) {
     for (std::uint32_t i = 0; i < 8; ++i) {
-      fn(Cell{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
-              2 * cell.z + ((i >> 2) & 1)},
-         PackedChild(n.children, i));
+      fn(cell.Child(i), PackedChild(n.children, i));
     }
     return;
   }
@@ -195,8 +197,7 @@ void Octree::VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& 
     return;
   }
   for (std::uint32_t i = 0; i < 8; ++i) {
-    const Cell child{cell.level + 1, 2 * cell.x + (i & 1), 2 * cell.y + ((i >> 1) & 1),
-                     2 * cell.z + ((i >> 2) & 1)};
+    const Cell child = cell.Child(i);
     VisitLeaves(pool, n.children + i, child, fn);
   }
 }

@@ -20,6 +20,18 @@ inline std::uint64_t TileMask(int c0, int c1, int r0, int r1) {
   return (cols * kByteRepeat) & row_sel;
 }
 
+// Bits of tile (tx, ty) that lie inside `rect` (which must overlap the tile).
+inline std::uint64_t RectBitsInTile(const geometry::PixelRect& rect, int tx, int ty) {
+  const int x0 = tx * 8, y0 = ty * 8;
+  return TileMask(std::max(rect.u0, x0) - x0, std::min(rect.u1, x0 + 7) - x0,
+                  std::max(rect.v0, y0) - y0, std::min(rect.v1, y0 + 7) - y0);
+}
+
+// Cover bits of the foreground word `w` restricted to the mask bits `m`.
+inline std::uint8_t CoverOfBits(std::uint64_t w, std::uint64_t m) {
+  return static_cast<std::uint8_t>(((w & m) != 0 ? 2 : 0) | ((~w & m) != 0 ? 1 : 0));
+}
+
 inline std::uint8_t CoverOf(std::uint64_t word, std::uint64_t valid) {
   const std::uint64_t fg = word & valid;
   return static_cast<std::uint8_t>((fg != 0 ? 2 : 0) | (fg != valid ? 1 : 0));
@@ -174,14 +186,11 @@ std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::u
     }
     if (it.level == 0) {
       const std::size_t t = static_cast<std::size_t>(it.y) * tiles_w_ + it.x;
-      const std::uint64_t m = TileMask(std::max(rect.u0, ex0) - ex0, std::min(rect.u1, ex1) - ex0,
-                                       std::max(rect.v0, ey0) - ey0, std::min(rect.v1, ey1) - ey0);
+      const std::uint64_t m = RectBitsInTile(rect, it.x, it.y);
       if constexpr (kChanged) {
         if ((changed_[t] & m) != 0) return goal;
       } else {
-        const std::uint64_t w = words_[t];
-        if ((w & m) != 0) acc |= 2;
-        if ((~w & m) != 0) acc |= 1;
+        acc |= CoverOfBits(words_[t], m);
         if (acc == goal) return acc;
       }
       continue;
@@ -210,17 +219,8 @@ Cover SilhouetteQuadtree::Query(const geometry::PixelRect& rect) const {
     for (int tx = tu0; tx <= tu1; ++tx) {
       const std::size_t t = static_cast<std::size_t>(ty) * tiles_w_ + tx;
       const std::uint8_t cover = levels_[0].cells[t] & 3;
-      if (cover != 3) {
-        acc |= cover;  // A pure tile: its part of the rect is the same.
-      } else {
-        const int x0 = tx * 8, y0 = ty * 8;
-        const std::uint64_t m =
-            TileMask(std::max(rect.u0, x0) - x0, std::min(rect.u1, x0 + 7) - x0,
-                     std::max(rect.v0, y0) - y0, std::min(rect.v1, y0 + 7) - y0);
-        const std::uint64_t w = words_[t];
-        if ((w & m) != 0) acc |= 2;
-        if ((~w & m) != 0) acc |= 1;
-      }
+      // A pure tile's part of the rect is pure too; a mixed one is read bit by bit.
+      acc |= cover != 3 ? cover : CoverOfBits(words_[t], RectBitsInTile(rect, tx, ty));
       if (acc == 3) return Cover::kMixed;
     }
   }

@@ -23,18 +23,16 @@ CarveResult Carve(const CarveJob& job) {
   CarveResult out;
   // Undistort where the lens distorts; from here on every camera is a pinhole.
   std::vector<geometry::CameraModel> pinholes;
-  std::vector<common::ImageU8> straight;
+  // Masks of distorting cameras are replaced by their undistorted copies; the
+  // others are used as they are.
+  std::vector<common::ImageU8> undistorted(job.cameras.size());
   auto t0 = Clock::now();
   for (std::size_t c = 0; c < job.cameras.size(); ++c) {
     const geometry::CameraModel& cam = job.cameras[c];
     pinholes.push_back(cam.Pinhole());
     if (cam.HasDistortion()) {
       const silhouette::ConservativeUndistorter undistort(cam);
-      common::ImageU8 img(cam.width, cam.height);
-      undistort.Apply(job.masks[c].View(), job.threshold, &img);
-      straight.push_back(std::move(img));
-    } else {
-      straight.push_back(job.masks[c]);
+      undistort.Apply(job.masks[c].View(), job.threshold, &undistorted[c]);
     }
   }
   out.undistort_ms = MsSince(t0);
@@ -55,7 +53,8 @@ CarveResult Carve(const CarveJob& job) {
     out.quadtrees.emplace_back(pinholes[c].width, pinholes[c].height);
     // Undistorted masks are 0/255; raw ones use the user's threshold.
     const std::uint8_t threshold = job.cameras[c].HasDistortion() ? 127 : job.threshold;
-    out.quadtrees.back().Build(straight[c].View(), threshold);
+    const common::ImageU8& mask = job.cameras[c].HasDistortion() ? undistorted[c] : job.masks[c];
+    out.quadtrees.back().Build(mask.View(), threshold);
   }
   for (const auto& q : out.quadtrees) ptrs.push_back(&q);
   out.quadtree_ms = MsSince(t0);
