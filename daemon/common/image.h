@@ -39,4 +39,21 @@ struct ImageU8 {
   [[nodiscard]] ImageViewU8 View() const { return {pixels.data(), width, height, width}; }
 };
 
+/// Owning 8-bit RGB image, tightly packed, R G B per pixel. Thread-compatible.
+struct ImageRgb8 {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> pixels;  ///< 3 * width * height bytes.
+
+  ImageRgb8() = default;
+  ImageRgb8(int w, int h) : width(w), height(h), pixels(static_cast<std::size_t>(w) * h * 3, 0) {}
+
+  [[nodiscard]] std::uint8_t* Pixel(int u, int v) {
+    return pixels.data() + (static_cast<std::size_t>(v) * width + u) * 3;
+  }
+  [[nodiscard]] const std::uint8_t* Pixel(int u, int v) const {
+    return pixels.data() + (static_cast<std::size_t>(v) * width + u) * 3;
+  }
+};
+
 }  // namespace hg::common

@@ -9,6 +9,7 @@
 #include <utility>
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 
 #include "common/config_error.h"
@@ -29,6 +30,13 @@ constexpr int kMaxImageSide = 65535;
 /// matrices written with ~6 significant digits.
 constexpr double kRotationTolerance = 1e-5;
 
+/// `look_at` closer than this to `position` gives no usable viewing direction (m).
+constexpr double kMinLookDistance = 1e-9;
+
+/// |cos| of the angle between the viewing direction and `up` above which `up`
+/// cannot orient the image (about 8 degrees); the same limit as the demo cell.
+constexpr double kMaxUpAlignment = 0.99;
+
 /// Reads one camera entry. `where` names the entry in messages ("cameras[2]"),
 /// empty for a stand-alone entry.
 class CameraParser {
@@ -40,8 +48,8 @@ class CameraParser {
     if (!node_.IsMap()) {
       throw ConfigError::At(file_, LineOf(node_), Prefix() + "expected a map with the camera keys");
     }
-    static const std::set<std::string> kKnown = {"name", "width", "height", "K",
-                                                 "R",    "t",     "P",      "distortion"};
+    static const std::set<std::string> kKnown = {
+        "name", "width", "height", "K", "R", "t", "P", "distortion", "position", "look_at", "up"};
     for (const auto& kv : node_) {
       const int line = LineOf(kv.first);
       if (!kv.first.IsScalar()) {
@@ -63,8 +71,18 @@ class CameraParser {
 
     const bool has_p = Has("P");
     const bool has_krt = Has("K") || Has("R") || Has("t");
+    const bool has_look_at = Has("position") || Has("look_at") || Has("up");
     if (has_p && has_krt) {
       throw ConfigError::At(file_, LineOf(Key("P")), Prefix() + "give either K+R+t or P, not both");
+    }
+    if (has_p && has_look_at) {
+      throw ConfigError::At(file_, LineOf(Key("P")),
+                            Prefix() + "give either K+position+look_at or P, not both");
+    }
+    if (has_look_at && (Has("R") || Has("t"))) {
+      const std::string key = Has("R") ? "R" : "t";
+      throw ConfigError::At(file_, LineOf(Key(key)),
+                            Prefix() + "give either R+t or position+look_at (+up), not both");
     }
     if (Has("distortion")) {
       const std::vector<double> d = Numbers("distortion", 5);
@@ -88,6 +106,15 @@ class CameraParser {
       camera.K = krt->K;
       camera.R_CW = krt->R_CW;
       camera.t_CW = krt->t_CW;
+      return camera;
+    }
+    if (has_look_at) {
+      for (const char* key : {"K", "position", "look_at"}) {
+        Require(key);
+      }
+      camera.K = Matrix3("K");
+      CheckIntrinsics(camera.K);
+      SetLookAtPose(&camera);
       return camera;
     }
     for (const char* key : {"K", "R", "t"}) {
@@ -194,6 +221,46 @@ class CameraParser {
       }
     }
     return out;
+  }
+
+  Eigen::Vector3d Vector3(const std::string& key) const {
+    const std::vector<double> v = Numbers(key, 3);
+    return {v[0], v[1], v[2]};
+  }
+
+  /// Pose from `position`, `look_at` and `up`: the camera sits at `position`, its
+  /// optical axis (z) points at `look_at`, x points right and y down in the image,
+  /// so that `up` appears upwards. Without `up`, +z is up, and +y for views within
+  /// ~8 degrees of vertical, where +z gives no usable image direction.
+  void SetLookAtPose(CameraModel* camera) const {
+    const Eigen::Vector3d eye = Vector3("position");
+    const Eigen::Vector3d target = Vector3("look_at");
+    const Eigen::Vector3d view = target - eye;
+    if (!(view.norm() > kMinLookDistance)) {
+      throw ConfigError::At(file_, LineOf(Key("look_at")),
+                            Path("look_at") + ": must differ from position");
+    }
+    const Eigen::Vector3d forward = view.normalized();
+    Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+    if (Has("up")) {
+      up = Vector3("up");
+      if (!(up.norm() > 0.0)) {
+        throw ConfigError::At(file_, LineOf(Key("up")), Path("up") + ": must not be zero");
+      }
+      up.normalize();
+      if (std::abs(forward.dot(up)) > kMaxUpAlignment) {
+        throw ConfigError::At(file_, LineOf(Key("up")),
+                              Path("up") + ": (nearly) parallel to the viewing direction");
+      }
+    } else if (std::abs(forward.dot(up)) > kMaxUpAlignment) {
+      up = Eigen::Vector3d::UnitY();
+    }
+    const Eigen::Vector3d right = forward.cross(up).normalized();
+    const Eigen::Vector3d down = forward.cross(right);
+    camera->R_CW.row(0) = right.transpose();
+    camera->R_CW.row(1) = down.transpose();
+    camera->R_CW.row(2) = forward.transpose();
+    camera->t_CW = -camera->R_CW * eye;
   }
 
   void CheckIntrinsics(const Eigen::Matrix3d& K) const {

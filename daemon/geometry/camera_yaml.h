@@ -12,9 +12,16 @@
 
 namespace hg::geometry {
 
-/// Parses one camera entry: `name`, `width`, `height` and either `K` (9, row-major),
-/// optional `distortion` (k1 k2 p1 p2 k3), `R` (9, world->camera) and `t` (3), or
-/// `P` (12, row-major, any scale). Unknown keys are rejected.
+/// Parses one camera entry: `name`, `width`, `height`, optional `distortion`
+/// (k1 k2 p1 p2 k3) and one of three forms of the projection:
+///  - `K` (9, row-major), `R` (9, world->camera) and `t` (3);
+///  - `K`, `position` (3, camera centre in world) and `look_at` (3, a world point
+///    on the optical axis), optional `up` (3, default +z; when the view is within
+///    ~8 degrees of vertical and `up` is not given, +y is used). The camera frame
+///    has x right, y down and z forward, so `up` points upwards in the image;
+///  - `P` (12, row-major, any scale), decomposed into K, R, t.
+/// Mixing the forms (R/t with position/look_at/up, or P with any other) is an
+/// error. Unknown keys are rejected.
 /// @throws common::ConfigError naming `file`, the line and the key.
 [[nodiscard]] CameraModel ParseCamera(const YAML::Node& node, const std::string& file);
 
@@ -27,7 +34,8 @@ namespace hg::geometry {
 /// @throws common::ConfigError on a missing file, malformed YAML or a bad entry.
 [[nodiscard]] std::vector<CameraModel> LoadCamerasFile(const std::string& path);
 
-/// Writes cameras in the form LoadCamerasFile reads (K, distortion, R, t).
+/// Writes cameras in the form LoadCamerasFile reads (K, distortion, R, t),
+/// whatever form they were read from.
 /// @throws common::ConfigError when the file cannot be written.
 void WriteCamerasFile(const std::string& path, const std::vector<CameraModel>& cameras);
 

@@ -1,9 +1,16 @@
 #include "geometry/mesh.h"
 
 #include <algorithm>
+#include <array>
+#include <bit>
+#include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
 #include <string>
 #include <string_view>
 #include <system_error>
@@ -137,6 +144,192 @@ TriangleMesh LoadObj(const std::string& path) {
   }
   if (in.bad()) throw common::ConfigError::At(path, line_number, "read error");
   return mesh;
+}
+
+namespace {
+
+/// Turns STL's triangle soup into an indexed mesh: corners with bit-identical
+/// coordinates share one vertex.
+class VertexIndex {
+ public:
+  explicit VertexIndex(TriangleMesh* mesh) : mesh_(mesh) {}
+
+  int Add(const Eigen::Vector3d& p) {
+    const auto [it, inserted] = index_.emplace(std::array<double, 3>{p.x(), p.y(), p.z()},
+                                               static_cast<int>(mesh_->vertices.size()));
+    if (inserted) mesh_->vertices.push_back(p);
+    return it->second;
+  }
+
+ private:
+  TriangleMesh* mesh_;
+  std::map<std::array<double, 3>, int> index_;
+};
+
+constexpr std::size_t kStlHeaderBytes = 80;
+constexpr std::size_t kStlRecordBytes = 50;  // Normal, 3 corners (12 floats), attribute.
+
+std::uint32_t ReadLittleEndian32(const std::string& data, std::size_t at) {
+  std::uint32_t value = 0;
+  for (int i = 3; i >= 0; --i) {
+    value = (value << 8) | static_cast<unsigned char>(data[at + i]);
+  }
+  return value;
+}
+
+TriangleMesh ParseBinaryStl(const std::string& path, const std::string& data, std::uint32_t count) {
+  TriangleMesh mesh;
+  VertexIndex index(&mesh);
+  mesh.triangles.reserve(count);
+  for (std::uint32_t t = 0; t < count; ++t) {
+    // Skip the 12-byte facet normal; the corners follow.
+    const std::size_t record = kStlHeaderBytes + 4 + t * kStlRecordBytes + 12;
+    std::array<int, 3> triangle{};
+    for (int corner = 0; corner < 3; ++corner) {
+      Eigen::Vector3d p;
+      for (int axis = 0; axis < 3; ++axis) {
+        p[axis] = std::bit_cast<float>(ReadLittleEndian32(data, record + 12 * corner + 4 * axis));
+        if (!std::isfinite(p[axis])) {
+          throw common::ConfigError::At(
+              path, 0,
+              "binary STL: triangle " + std::to_string(t) + " has a non-finite coordinate");
+        }
+      }
+      triangle[corner] = index.Add(p);
+    }
+    mesh.triangles.push_back(triangle);
+  }
+  return mesh;
+}
+
+std::string Lower(std::string_view text) {
+  std::string out(text);
+  std::transform(out.begin(), out.end(), out.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return out;
+}
+
+TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
+  enum class State { kOutside, kSolid, kFacet, kLoop, kLoopDone };
+  TriangleMesh mesh;
+  VertexIndex index(&mesh);
+  State state = State::kOutside;
+  std::vector<int> loop;
+  int solids = 0;
+  int line_number = 0;
+  std::size_t begin = 0;
+  auto fail = [&](const std::string& message) {
+    return common::ConfigError::At(path, line_number, message);
+  };
+  while (begin < data.size()) {
+    std::size_t end = data.find('\n', begin);
+    if (end == std::string::npos) end = data.size();
+    std::string_view rest(data.data() + begin, end - begin);
+    begin = end + 1;
+    ++line_number;
+    const std::string keyword = Lower(NextToken(rest));
+    if (keyword.empty()) continue;
+    auto unexpected = [&](const char* expected) {
+      return fail("unexpected '" + keyword + "' (expected " + expected + ")");
+    };
+    switch (state) {
+      case State::kOutside:
+        if (keyword != "solid") throw unexpected("'solid'");
+        ++solids;
+        state = State::kSolid;
+        break;
+      case State::kSolid:
+        if (keyword == "endsolid") {
+          state = State::kOutside;
+        } else if (keyword == "facet") {
+          state = State::kFacet;
+        } else {
+          throw unexpected("'facet' or 'endsolid'");
+        }
+        break;
+      case State::kFacet:
+        if (keyword != "outer" || Lower(NextToken(rest)) != "loop") {
+          throw unexpected("'outer loop'");
+        }
+        loop.clear();
+        state = State::kLoop;
+        break;
+      case State::kLoop:
+        if (keyword == "vertex") {
+          Eigen::Vector3d p;
+          for (int axis = 0; axis < 3; ++axis) {
+            const std::string_view token = NextToken(rest);
+            if (token.empty()) throw fail("vertex: needs 3 numbers");
+            if (!ParseDouble(token, &p[axis])) {
+              throw fail("vertex: bad number '" + std::string(token) + "'");
+            }
+          }
+          loop.push_back(index.Add(p));
+        } else if (keyword == "endloop") {
+          if (loop.size() < 3) {
+            throw fail("endloop: a facet needs at least 3 vertices, got " +
+                       std::to_string(loop.size()));
+          }
+          for (std::size_t i = 1; i + 1 < loop.size(); ++i) {
+            mesh.triangles.push_back({loop[0], loop[i], loop[i + 1]});
+          }
+          state = State::kLoopDone;
+        } else {
+          throw unexpected("'vertex' or 'endloop'");
+        }
+        break;
+      case State::kLoopDone:
+        if (keyword != "endfacet") throw unexpected("'endfacet'");
+        state = State::kSolid;
+        break;
+    }
+  }
+  if (state != State::kOutside) {
+    throw common::ConfigError::At(path, line_number, "unexpected end of file (missing 'endsolid')");
+  }
+  if (solids == 0) throw common::ConfigError::At(path, 0, "empty file");
+  return mesh;
+}
+
+}  // namespace
+
+TriangleMesh LoadStl(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw common::ConfigError::At(path, 0, "cannot open");
+  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw common::ConfigError::At(path, 0, "read error");
+
+  if (data.size() >= kStlHeaderBytes + 4) {
+    const std::uint32_t count = ReadLittleEndian32(data, kStlHeaderBytes);
+    if (data.size() == kStlHeaderBytes + 4 + std::uint64_t{count} * kStlRecordBytes) {
+      return ParseBinaryStl(path, data, count);
+    }
+  }
+  const std::size_t first = data.find_first_not_of(" \t\r\n\v\f");
+  if (first != std::string::npos && Lower(std::string_view(data).substr(first, 5)) == "solid") {
+    return ParseAsciiStl(path, data);
+  }
+  if (data.size() < kStlHeaderBytes + 4) {
+    throw common::ConfigError::At(path, 0,
+                                  "not an STL file: " + std::to_string(data.size()) +
+                                      " bytes, too short for binary and no 'solid' at the start");
+  }
+  const std::uint32_t count = ReadLittleEndian32(data, kStlHeaderBytes);
+  throw common::ConfigError::At(
+      path, 0,
+      "binary STL: " + std::to_string(count) + " triangles need " +
+          std::to_string(kStlHeaderBytes + 4 + std::uint64_t{count} * kStlRecordBytes) +
+          " bytes, the file has " + std::to_string(data.size()));
+}
+
+TriangleMesh LoadMesh(const std::string& path) {
+  const std::string extension = Lower(std::filesystem::path(path).extension().string());
+  if (extension == ".obj") return LoadObj(path);
+  if (extension == ".stl") return LoadStl(path);
+  throw common::ConfigError::At(path, 0,
+                                (extension.empty() ? std::string("no file extension")
+                                                   : "unknown mesh format '" + extension + "'") +
+                                    " (expected .obj or .stl)");
 }
 
 void WriteObj(const std::string& path, const TriangleMesh& mesh) {

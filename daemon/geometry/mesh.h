@@ -28,6 +28,20 @@ struct TriangleMesh {
 /// malformed number or an index out of range.
 [[nodiscard]] TriangleMesh LoadObj(const std::string& path);
 
+/// Loads an STL file, ASCII (`solid` ... `facet` / `outer loop` / `vertex x y z` ...
+/// `endsolid`, several solids allowed, loops of more than 3 vertices are fanned)
+/// or binary (80-byte header, little-endian triangle count and records). A file
+/// whose size matches its binary triangle count is read as binary even when its
+/// header starts with "solid", as some exporters write. Facet normals are
+/// ignored; bit-identical corners share one vertex.
+/// @throws common::ConfigError naming the file (and the line for ASCII) on a
+/// missing file, a truncated or malformed file or a non-finite coordinate.
+[[nodiscard]] TriangleMesh LoadStl(const std::string& path);
+
+/// Loads an OBJ or STL mesh, chosen by the extension (`.obj` or `.stl`, any case).
+/// @throws common::ConfigError on another extension or any load error.
+[[nodiscard]] TriangleMesh LoadMesh(const std::string& path);
+
 /// Writes a mesh as OBJ.
 void WriteObj(const std::string& path, const TriangleMesh& mesh);
 

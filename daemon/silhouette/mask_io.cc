@@ -4,6 +4,7 @@
 #include <filesystem>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "common/config_error.h"
 
@@ -23,16 +24,46 @@ common::ImageU8 ReadGreyImage(const std::string& path) {
   return out;
 }
 
-void WriteGreyImage(const std::string& path, const common::ImageU8& image) {
-  const cv::Mat m(image.height, image.width, CV_8UC1,
-                  const_cast<std::uint8_t*>(image.pixels.data()));
+namespace {
+
+void WriteMat(const std::string& path, const cv::Mat& m) {
   bool ok = false;
   try {
-    ok = cv::imwrite(path, m);
-  } catch (const cv::Exception& e) {
+    // Fast PNG compression: synthetic sequences write hundreds of frames.
+    ok = cv::imwrite(path, m, {cv::IMWRITE_PNG_COMPRESSION, 1});
+  } catch (const cv::Exception&) {
     ok = false;
   }
   if (!ok) throw common::ConfigError(path + ": cannot write image");
+}
+
+}  // namespace
+
+void WriteGreyImage(const std::string& path, const common::ImageU8& image) {
+  const cv::Mat m(image.height, image.width, CV_8UC1,
+                  const_cast<std::uint8_t*>(image.pixels.data()));
+  WriteMat(path, m);
+}
+
+common::ImageRgb8 ReadRgbImage(const std::string& path) {
+  if (!std::filesystem::exists(path))
+    throw common::ConfigError(path + ": cannot open: no such file");
+  const cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
+  if (bgr.empty() || bgr.type() != CV_8UC3) {
+    throw common::ConfigError(path + ": not a readable 8-bit image");
+  }
+  common::ImageRgb8 out(bgr.cols, bgr.rows);
+  cv::Mat rgb(bgr.rows, bgr.cols, CV_8UC3, out.pixels.data());
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return out;
+}
+
+void WriteRgbImage(const std::string& path, const common::ImageRgb8& image) {
+  const cv::Mat rgb(image.height, image.width, CV_8UC3,
+                    const_cast<std::uint8_t*>(image.pixels.data()));
+  cv::Mat bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  WriteMat(path, bgr);
 }
 
 }  // namespace hg::silhouette

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -176,6 +178,120 @@ TEST(CameraYamlTest, ParseCameraAloneNamesKeyWithoutListPrefix) {
   } catch (const ConfigError& e) {
     EXPECT_STREQ(e.what(), "inline.yaml:4: K: expected 9 numbers, got 8");
   }
+}
+
+/// A camera entry in the position + look_at form (lines 2..7 of the file).
+std::string LookAtCamera(const Eigen::Vector3d& position, const Eigen::Vector3d& look_at,
+                         const std::string& up = "") {
+  char buf[512];
+  std::snprintf(buf, sizeof(buf),
+                "cameras:\n"
+                "  - name: la\n"
+                "    width: 640\n"
+                "    height: 480\n"
+                "    K: [500, 0, 330.5, 0, 510, 235.25, 0, 0, 1]\n"
+                "    position: [%.17g, %.17g, %.17g]\n"
+                "    look_at: [%.17g, %.17g, %.17g]\n",
+                position.x(), position.y(), position.z(), look_at.x(), look_at.y(), look_at.z());
+  return std::string(buf) + (up.empty() ? "" : "    up: " + up + "\n");
+}
+
+TEST(CameraYamlLookAtTest, TargetProjectsToPrincipalPointAndUpIsUp) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> unit(-3.0, 3.0);
+  for (int trial = 0; trial < 50; ++trial) {
+    const Eigen::Vector3d position(unit(rng), unit(rng), unit(rng));
+    const Eigen::Vector3d look_at(unit(rng), unit(rng), 0.2 * unit(rng));
+    if ((look_at - position).normalized().z() > 0.95 ||
+        (look_at - position).normalized().z() < -0.95) {
+      continue;  // Near-vertical views are covered below.
+    }
+    SCOPED_TRACE(trial);
+    const std::vector<CameraModel> cams =
+        LoadCamerasFile(WriteTemp(LookAtCamera(position, look_at)));
+    ASSERT_EQ(cams.size(), 1u);
+    const CameraModel& c = cams[0];
+    EXPECT_LT((c.R_CW.transpose() * c.R_CW - Eigen::Matrix3d::Identity()).norm(), 1e-12);
+    EXPECT_NEAR(c.R_CW.determinant(), 1.0, 1e-12);
+    EXPECT_LT((c.CentreW() - position).norm(), 1e-9);
+    const std::optional<Eigen::Vector2d> target = c.Project(look_at);
+    ASSERT_TRUE(target.has_value());
+    EXPECT_NEAR(target->x(), 330.5, 1e-6);
+    EXPECT_NEAR(target->y(), 235.25, 1e-6);
+    // A point above the target appears above it (smaller v) and not sideways:
+    // the image x axis is horizontal.
+    const std::optional<Eigen::Vector2d> above = c.Project(look_at + Eigen::Vector3d(0, 0, 0.1));
+    ASSERT_TRUE(above.has_value());
+    EXPECT_LT(above->y(), target->y());
+    EXPECT_NEAR(c.R_CW.row(0).z(), 0.0, 1e-12);
+  }
+}
+
+TEST(CameraYamlLookAtTest, ExplicitUpAndVerticalView) {
+  // Looking along +x with up = +y: world +y is up in the image, +z points right.
+  const std::vector<CameraModel> side =
+      LoadCamerasFile(WriteTemp(LookAtCamera({0, 0, 0}, {2, 0, 0}, "[0, 2, 0]")));
+  const Eigen::Matrix3d expected_side =
+      (Eigen::Matrix3d() << 0, 0, 1, 0, -1, 0, 1, 0, 0).finished();
+  EXPECT_LT((side[0].R_CW - expected_side).norm(), 1e-12);
+
+  // Straight down without `up`: +y is used as up, so world +x points right.
+  const std::vector<CameraModel> down =
+      LoadCamerasFile(WriteTemp(LookAtCamera({1, 2, 3}, {1, 2, 0}), "down"));
+  const Eigen::Matrix3d expected_down =
+      (Eigen::Matrix3d() << 1, 0, 0, 0, -1, 0, 0, 0, -1).finished();
+  EXPECT_LT((down[0].R_CW - expected_down).norm(), 1e-12);
+  const std::optional<Eigen::Vector2d> p = down[0].Project({1, 2, 0});
+  ASSERT_TRUE(p.has_value());
+  EXPECT_NEAR(p->x(), 330.5, 1e-9);
+  EXPECT_NEAR(p->y(), 235.25, 1e-9);
+}
+
+TEST(CameraYamlLookAtTest, WrittenAsRotationAndTranslation) {
+  const std::vector<CameraModel> cams =
+      LoadCamerasFile(WriteTemp(LookAtCamera({-0.3, -0.3, 3.6}, {2, 2, 1})));
+  const std::string path = TempPath("out");
+  WriteCamerasFile(path, cams);
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("R: ["), std::string::npos) << text;
+  EXPECT_NE(text.find("t: ["), std::string::npos) << text;
+  EXPECT_EQ(text.find("position"), std::string::npos) << text;
+  const std::vector<CameraModel> back = LoadCamerasFile(path);
+  ASSERT_EQ(back.size(), 1u);
+  EXPECT_EQ(back[0].R_CW, cams[0].R_CW);
+  EXPECT_EQ(back[0].t_CW, cams[0].t_CW);
+}
+
+TEST(CameraYamlLookAtTest, Errors) {
+  const std::string base = LookAtCamera({0, 0, 2}, {1, 1, 0});
+  ExpectError(base + "    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n", 8,
+              {"cameras[0]: give either R+t or position+look_at (+up), not both"});
+  ExpectError(base + "    t: [0, 0, 1]\n", 8,
+              {"cameras[0]: give either R+t or position+look_at (+up), not both"});
+  ExpectError(Replace(std::string(kCam0), "    t: [0, 0, 2]\n", "    up: [0, 0, 1]\n"), 7,
+              {"cameras[0]: give either R+t or position+look_at"});
+  ExpectError(base + "    P: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]\n", 8,
+              {"cameras[0]: give either K+R+t or P, not both"});
+  ExpectError(Replace(Replace(base, "    K: [500, 0, 330.5, 0, 510, 235.25, 0, 0, 1]\n", ""),
+                      "    look_at:", "    P: [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]\n    look_at:"),
+              6, {"cameras[0]: give either K+position+look_at or P, not both"});
+  ExpectError(Replace(base, "    look_at: [1, 1, 0]\n", ""), 2,
+              {"cameras[0]: missing key 'look_at'"});
+  ExpectError(Replace(base, "    position: [0, 0, 2]\n", ""), 2,
+              {"cameras[0]: missing key 'position'"});
+  ExpectError(Replace(base, "    K: [500, 0, 330.5, 0, 510, 235.25, 0, 0, 1]\n", ""), 2,
+              {"cameras[0]: missing key 'K'"});
+  ExpectError(Replace(base, "look_at: [1, 1, 0]", "look_at: [0, 0, 2]"), 7,
+              {"cameras[0].look_at: must differ from position"});
+  ExpectError(Replace(base, "look_at: [1, 1, 0]", "look_at: [1, 1]"), 7,
+              {"cameras[0].look_at: expected 3 numbers, got 2"});
+  ExpectError(Replace(base, "position: [0, 0, 2]", "position: [0, .inf, 2]"), 6,
+              {"cameras[0].position[1]: not finite"});
+  ExpectError(base + "    up: [0, 0, 0]\n", 8, {"cameras[0].up: must not be zero"});
+  ExpectError(base + "    up: [-1, -1, 2]\n", 8,
+              {"cameras[0].up: (nearly) parallel to the viewing direction"});
+  ExpectError(Replace(base, "K: [500,", "K: [-500,"), 5, {"cameras[0].K: focal lengths"});
 }
 
 TEST(CameraYamlErrorTest, WrongCount) {

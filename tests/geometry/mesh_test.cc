@@ -1,7 +1,10 @@
 #include "geometry/mesh.h"
 
+#include <bit>
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <string>
 #include <system_error>
@@ -152,6 +155,207 @@ TEST(LoadObjTest, ErrorsNameFileAndLine) {
     EXPECT_EQ(message.rfind(prefix, 0), 0u) << message;
     EXPECT_NE(message.find(c.fragment), std::string::npos) << message;
   }
+}
+
+/// Little-endian bytes of a binary STL file holding `mesh`'s triangles; the
+/// header starts with "solid" as some exporters write it.
+std::string BinaryStl(const TriangleMesh& mesh) {
+  std::string data = "solid written by a binary exporter";
+  data.resize(80, ' ');
+  auto put32 = [&data](std::uint32_t v) {
+    for (int i = 0; i < 4; ++i) data.push_back(static_cast<char>((v >> (8 * i)) & 0xFF));
+  };
+  auto put_float = [&](float f) { put32(std::bit_cast<std::uint32_t>(f)); };
+  put32(static_cast<std::uint32_t>(mesh.triangles.size()));
+  for (const auto& t : mesh.triangles) {
+    for (int i = 0; i < 3; ++i) put_float(0.0F);  // Normal, ignored.
+    for (int corner = 0; corner < 3; ++corner) {
+      for (int axis = 0; axis < 3; ++axis) {
+        put_float(static_cast<float>(mesh.vertices[t[corner]][axis]));
+      }
+    }
+    data.append(2, '\0');  // Attribute byte count.
+  }
+  return data;
+}
+
+/// Loads `text` as STL and returns the ConfigError message ("" when it loads).
+std::string StlError(const std::string& name, const std::string& text) {
+  const ScopedFile file = WriteFile(name, text);
+  try {
+    (void)LoadStl(file.path);
+  } catch (const common::ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+/// Expects the corners of every triangle of `a` and `b` to be the same points, in order.
+void ExpectSameTriangles(const TriangleMesh& a, const TriangleMesh& b) {
+  ASSERT_EQ(a.triangles.size(), b.triangles.size());
+  for (std::size_t i = 0; i < a.triangles.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_EQ(a.vertices[a.triangles[i][k]], b.vertices[b.triangles[i][k]]) << i << " " << k;
+    }
+  }
+}
+
+TEST(LoadStlTest, AsciiSolidsQuadsAndSharedCorners) {
+  const ScopedFile stl = WriteFile("two.stl",
+                                   "solid first\n"
+                                   "  facet normal 0 0 1\n"
+                                   "    outer loop\n"
+                                   "      vertex 0 0 0\n"
+                                   "      vertex 1.5 0 0\n"
+                                   "      vertex 0 1 -2.5e-1\n"
+                                   "    endloop\n"
+                                   "  endfacet\n"
+                                   "  facet normal 0 0 1\n"
+                                   "    outer loop\n"
+                                   "      vertex 1.5 0 0\n"
+                                   "      vertex 1.5 1 0\n"
+                                   "      vertex 0 1 -0.25\n"
+                                   "    endloop\n"
+                                   "  endfacet\n"
+                                   "endsolid first\n"
+                                   "\n"
+                                   "SOLID second\r\n"
+                                   "FACET NORMAL 0 0 0\r\n"
+                                   "OUTER LOOP\r\n"
+                                   "VERTEX 5 5 5\r\n"
+                                   "VERTEX 6 5 5\r\n"
+                                   "VERTEX 6 6 5\r\n"
+                                   "VERTEX 5 6 5\r\n"
+                                   "ENDLOOP\r\n"
+                                   "ENDFACET\r\n"
+                                   "ENDSOLID\r\n");
+  const TriangleMesh mesh = LoadStl(stl.path);
+  ASSERT_EQ(mesh.vertices.size(), 8u);  // 4 + 4: the first solid's triangles share 2 corners.
+  ASSERT_EQ(mesh.triangles.size(), 4u);
+  EXPECT_EQ(mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
+  EXPECT_EQ(mesh.triangles[1], (std::array<int, 3>{1, 3, 2}));
+  EXPECT_EQ(mesh.vertices[2], Eigen::Vector3d(0, 1, -0.25));
+  // The quad is fanned from its first corner.
+  EXPECT_EQ(mesh.triangles[2], (std::array<int, 3>{4, 5, 6}));
+  EXPECT_EQ(mesh.triangles[3], (std::array<int, 3>{4, 6, 7}));
+  EXPECT_EQ(mesh.vertices[7], Eigen::Vector3d(5, 6, 5));
+}
+
+TEST(LoadStlTest, BinaryBoxWithSolidHeader) {
+  // Coordinates exact in float, so the mesh reads back unchanged.
+  const TriangleMesh box = TriangleMesh::Box({-1.5, 0.25, 2}, {3, 1.125, 2.5});
+  const ScopedFile stl = WriteFile("box.stl", BinaryStl(box));
+  const TriangleMesh mesh = LoadStl(stl.path);
+  EXPECT_EQ(mesh.vertices.size(), 8u);
+  ExpectSameTriangles(mesh, box);
+}
+
+TEST(LoadStlTest, BinaryRandomTrianglesRoundToFloat) {
+  std::mt19937_64 rng(99);
+  std::uniform_real_distribution<double> coord(-10, 10);
+  TriangleMesh mesh;
+  for (int i = 0; i < 60; ++i) {
+    mesh.vertices.emplace_back(coord(rng), coord(rng), coord(rng));
+  }
+  std::uniform_int_distribution<int> index(0, 59);
+  for (int i = 0; i < 100; ++i) {
+    mesh.triangles.push_back({index(rng), index(rng), index(rng)});
+  }
+  const ScopedFile stl = WriteFile("random.stl", BinaryStl(mesh));
+  const TriangleMesh loaded = LoadStl(stl.path);
+  ASSERT_EQ(loaded.triangles.size(), mesh.triangles.size());
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    for (int k = 0; k < 3; ++k) {
+      for (int axis = 0; axis < 3; ++axis) {
+        const float as_float = static_cast<float>(mesh.vertices[mesh.triangles[i][k]][axis]);
+        EXPECT_EQ(loaded.vertices[loaded.triangles[i][k]][axis], static_cast<double>(as_float));
+      }
+    }
+  }
+}
+
+TEST(LoadStlTest, BinaryErrors) {
+  const std::string box = BinaryStl(TriangleMesh::Box({0, 0, 0}, {1, 1, 1}));
+  // 80 + 4 + 12 * 50 = 684 bytes; one missing byte makes the count disagree
+  // with the size, and the header ("solid ...") does not parse as ASCII.
+  std::string truncated = box.substr(0, box.size() - 1);
+  truncated.replace(0, 5, "bin  ");
+  const std::string message = StlError("truncated.stl", truncated);
+  EXPECT_EQ(message, TempPath("truncated.stl") +
+                         ": binary STL: 12 triangles need 684 bytes, the file has 683");
+
+  std::string nan = box;
+  const float not_a_number = std::numeric_limits<float>::quiet_NaN();
+  const std::uint32_t bits = std::bit_cast<std::uint32_t>(not_a_number);
+  const std::size_t at = 80 + 4 + 3 * 50 + 12 + 4;  // Triangle 3, corner 0, y.
+  for (int i = 0; i < 4; ++i) nan[at + i] = static_cast<char>((bits >> (8 * i)) & 0xFF);
+  EXPECT_NE(StlError("nan.stl", nan).find("nan.stl: binary STL: triangle 3 has a non-finite"),
+            std::string::npos)
+      << StlError("nan.stl", nan);
+
+  EXPECT_NE(StlError("short.stl", "abc").find("short.stl: not an STL file: 3 bytes"),
+            std::string::npos);
+  EXPECT_NE(StlError("empty.stl", "").find("empty.stl: not an STL file"), std::string::npos);
+}
+
+TEST(LoadStlTest, AsciiErrorsNameFileAndLine) {
+  const std::string facet_start = "solid s\nfacet normal 0 0 1\nouter loop\n";
+  struct Case {
+    const char* name;
+    std::string text;
+    int line;
+    const char* fragment;
+  };
+  const Case cases[] = {
+      {"bad_number.stl", facet_start + "vertex 0 0 0\nvertex 1 x 0\n", 5, "vertex: bad number 'x'"},
+      {"inf.stl", facet_start + "vertex 0 0 inf\n", 4, "vertex: bad number 'inf'"},
+      {"two_numbers.stl", facet_start + "vertex 0 0\n", 4, "vertex: needs 3 numbers"},
+      {"two_corners.stl", facet_start + "vertex 0 0 0\nvertex 1 0 0\nendloop\n", 6,
+       "a facet needs at least 3 vertices, got 2"},
+      {"no_loop.stl", "solid s\nfacet normal 0 0 1\nvertex 0 0 0\n", 3, "expected 'outer loop'"},
+      {"no_endfacet.stl",
+       facet_start + "vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nfacet\n", 8,
+       "expected 'endfacet'"},
+      {"stray.stl", "solid s\n\nvertex 0 0 0\n", 3, "expected 'facet' or 'endsolid'"},
+      {"no_endsolid.stl", "solid s\nfacet normal 0 0 1\nouter loop\n", 3,
+       "unexpected end of file (missing 'endsolid')"},
+      {"after_end.stl", "solid s\nendsolid s\nfacet\n", 3, "expected 'solid'"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const std::string message = StlError(c.name, c.text);
+    const std::string prefix = TempPath(c.name) + ":" + std::to_string(c.line) + ": ";
+    EXPECT_EQ(message.rfind(prefix, 0), 0u) << message;
+    EXPECT_NE(message.find(c.fragment), std::string::npos) << message;
+  }
+}
+
+TEST(LoadMeshTest, ChoosesFormatByExtension) {
+  const TriangleMesh box = TriangleMesh::Box({0, 0, 0}, {1, 2, 3});
+  const ScopedFile obj{TempPath("upper.OBJ")};
+  WriteObj(obj.path, box);
+  ExpectSameTriangles(LoadMesh(obj.path), box);
+  const ScopedFile stl = WriteFile("mixed.Stl", BinaryStl(box));
+  ExpectSameTriangles(LoadMesh(stl.path), box);
+
+  // The extension decides, not the content: OBJ skips the STL records it does not know.
+  const ScopedFile wrong = WriteFile("wrong.obj",
+                                     "solid s\nfacet normal 0 0 1\nouter loop\n"
+                                     "vertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+                                     "endloop\nendfacet\nendsolid\n");
+  EXPECT_EQ(LoadMesh(wrong.path).triangles.size(), 0u);  // OBJ ignores unknown records.
+
+  for (const char* name : {"mesh.ply", "mesh"}) {
+    const ScopedFile other = WriteFile(name, "v 0 0 0\n");
+    try {
+      (void)LoadMesh(other.path);
+      ADD_FAILURE() << name;
+    } catch (const common::ConfigError& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(other.path + ": ", 0), 0u) << e.what();
+      EXPECT_NE(std::string(e.what()).find("(expected .obj or .stl)"), std::string::npos);
+    }
+  }
+  EXPECT_THROW((void)LoadMesh(TempPath("missing.stl")), common::ConfigError);
 }
 
 TEST(TriangleMeshTest, BoxHasTwelveOutwardTrianglesAndExactBounds) {

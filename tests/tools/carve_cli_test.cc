@@ -13,36 +13,17 @@
 #include "scene/exact_mask.h"
 #include "silhouette/mask_io.h"
 #include "support/random_scene.h"
+#include "support/run_tool.h"
 
 namespace hg {
 namespace {
 
 namespace fs = std::filesystem;
 
-struct ProcessResult {
-  int code = -1;
-  std::string out;
-  std::string err;
-};
+using testing::ProcessResult;
 
 ProcessResult Hullguard(const std::string& args) {
-  static int counter = 0;
-  const fs::path dir =
-      fs::temp_directory_path() / (std::string("hg_cli_").append(std::to_string(::getpid())));
-  fs::create_directories(dir);
-  const fs::path out = dir / (std::string("out").append(std::to_string(counter)));
-  const fs::path err = dir / (std::string("err").append(std::to_string(counter++)));
-  const std::string cmd =
-      std::string(HG_HULLGUARD_BIN) + " " + args + " >" + out.string() + " 2>" + err.string();
-  const int status = std::system(cmd.c_str());
-  ProcessResult r;
-  r.code = WEXITSTATUS(status);
-  std::stringstream so, se;
-  so << std::ifstream(out).rdbuf();
-  se << std::ifstream(err).rdbuf();
-  r.out = so.str();
-  r.err = se.str();
-  return r;
+  return testing::RunTool(HG_HULLGUARD_BIN, args);
 }
 
 class CarveCliTest : public ::testing::Test {

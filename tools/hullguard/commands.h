@@ -14,5 +14,7 @@ inline constexpr int kExitBadInput = 2;
 
 void RegisterCarve(CLI::App& app, int* exit_code);
 void RegisterDemo(CLI::App& app, int* exit_code);
+void RegisterSynth(CLI::App& app, int* exit_code);
+void RegisterBench(CLI::App& app, int* exit_code);
 
 }  // namespace hg::tools

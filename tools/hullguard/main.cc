@@ -11,6 +11,8 @@ int main(int argc, char** argv) {
   int exit_code = hg::tools::kExitOk;
   hg::tools::RegisterCarve(app, &exit_code);
   hg::tools::RegisterDemo(app, &exit_code);
+  hg::tools::RegisterSynth(app, &exit_code);
+  hg::tools::RegisterBench(app, &exit_code);
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
-"""Turns Google Benchmark JSON from hg_bench into the generated part of
-docs/performance.md (between the BEGIN/END markers; the rest of the file is kept)
-and a gnuplot PNG of octree update times."""
+"""Turns Google Benchmark JSON from hg_bench and the `hullguard bench` runs on the
+paper cell into the generated part of docs/performance.md (between the BEGIN/END
+markers; the rest of the file is kept) and gnuplot PNGs of the times.
+Usage: bench_report.py BENCH_JSON PAPER_CELL_JSON PERFORMANCE_MD IMAGES_DIR"""
 import datetime
 import json
+import os
 import platform
 import re
 import subprocess
@@ -30,8 +32,86 @@ def parse_args(name):
     return {k: int(v) for k, v in re.findall(r"(\w+):(\d+)", name)}
 
 
-def main(bench_json, doc_path, png_path):
+def paper_cell_section(runs, images_dir):
+    """Tables and the scaling plot of the `hullguard bench` runs (name -> JSON)."""
+    if not runs:
+        return []
+    out = ["### Paper cell, `hullguard bench` (simulator -> quadtrees -> octree, frame by frame)", "",
+           "Scene `config/scenes/paper_cell.yaml`: 4 m cube, 8 Full HD cameras, a table, two racks, "
+           "a robot, a crate, three people walking, crouching and reaching. Command per row: "
+           "`hullguard bench --scene config/scenes/paper_cell.yaml --frames N --start 4 "
+           "--depth D --cameras C --threads T --json`.", "",
+           "| cameras | depth | threads | frames | render masks median | mask -> quadtree median "
+           "| octree median | octree p99 | octree max | first frame | leaves | points inside people "
+           "/ reported free | target |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    def key(r):
+        return (r["depth"], r["cameras"], r["threads"])
+    for name, r in sorted(runs.items(), key=lambda kv: key(kv[1])):
+        st = r["stages"]
+        target = ("median <= 10 ms, p99 <= 25 ms"
+                  if (r["depth"], r["cameras"], r["threads"]) == (10, 8, 2) else "")
+        out.append(
+            f"| {r['cameras']} | {r['depth']} | {r['threads']} | {r['frames']} | "
+            f"{st['render']['median_ms']:.1f} ms | {st['quadtree']['median_ms']:.1f} ms | "
+            f"{st['octree']['median_ms']:.1f} ms | {st['octree']['p99_ms']:.1f} ms | "
+            f"{st['octree']['max_ms']:.1f} ms | {r['octree_first_frame_ms']:.1f} ms | "
+            f"{r['leaves']:,} | {r['truth_points']:,} / {r['truth_points_free']} | {target} |")
+    out.append("")
+    base = [r for r in runs.values() if "baseline" in r]
+    for r in base:
+        b = r["baseline"]
+        out += [f"Dense baseline on the same frames (depth {r['depth']} run, {r['threads']} threads): "
+                f"{b['resolution']}^3 voxels, centre point per voxel, median "
+                f"{b['time']['median_ms']:.1f} ms, p99 {b['time']['p99_ms']:.1f} ms; "
+                f"dense / octree median = {b['ratio_to_octree_median']:.2f}. The dense carve "
+                f"wrongly frees {b['truth_points_carved']:,} of {b['truth_points']:,} points "
+                f"inside people; the octree frees {r['truth_points_free']}.", ""]
+
+    # Scaling plot: octree median against depth, cameras and threads.
+    panels = [("depth", lambda r: r["cameras"] == 8 and r["threads"] == 2, "octree depth"),
+              ("cameras", lambda r: r["depth"] == 10 and r["threads"] == 2, "cameras (depth 10)"),
+              ("threads", lambda r: r["depth"] == 10 and r["cameras"] == 8, "threads (depth 10)")]
+    with tempfile.NamedTemporaryFile("w", suffix=".dat", delete=False) as dat:
+        for field, keep, _ in panels:
+            dat.write(f"# {field}\n")
+            for r in sorted((r for r in runs.values() if keep(r)), key=lambda r: r[field]):
+                st = r["stages"]["octree"]
+                dat.write(f"{r[field]} {st['median_ms']} {st['p99_ms']} "
+                          f"{r['stages']['quadtree']['median_ms']}\n")
+            dat.write("\n\n")
+        dat_path = dat.name
+    png = os.path.join(images_dir, "paper_cell_scaling.png")
+    plots = []
+    for i, (field, _, label) in enumerate(panels):
+        plots.append(f"""
+set title 'octree time per frame against {field}'
+set xlabel '{label}'
+set ylabel 'ms per frame'
+set logscale y
+set grid
+set key left top
+plot '{dat_path}' index {i} using 1:2 with linespoints lw 2 pt 7 title 'octree median', \\
+     '{dat_path}' index {i} using 1:3 with linespoints lw 2 pt 5 title 'octree p99', \\
+     '{dat_path}' index {i} using 1:4 with linespoints lw 2 pt 9 title 'quadtrees (all cameras)', \\
+     10 with lines dt 2 lc rgb 'dark-green' title 'target median (10 ms)', \\
+     25 with lines dt 2 lc rgb 'red' title 'target p99 (25 ms)'
+""")
+    script = (f"set terminal pngcairo size 1500,480 font ',10'\nset output '{png}'\n"
+              "set multiplot layout 1,3\n" + "".join(plots) + "unset multiplot\n")
+    subprocess.run(["gnuplot"], input=script, text=True, check=True)
+    out += ["![paper cell: octree time per frame against depth, cameras and threads]"
+            "(images/paper_cell_scaling.png)", ""]
+    return out
+
+
+def main(bench_json, paper_json, doc_path, images_dir):
+    png_path = os.path.join(images_dir, "octree_times.png")
     data = json.load(open(bench_json))
+    try:
+        paper_runs = json.load(open(paper_json))
+    except OSError:
+        paper_runs = {}
     ctx = data["context"]
     rows = [b for b in data["benchmarks"] if b.get("run_type", "iteration") == "iteration"]
     by_name = {b["name"].split("/")[0]: [] for b in rows}
@@ -78,6 +158,20 @@ def main(bench_json, doc_path, png_path):
                        f"{int(b['nodes']):,} | {tgt} |")
         return out + [""]
 
+    sim = by_name.get("BM_SimMasks", [None])[0]
+    if sim:
+        rate = sim.get("frame_sets_per_s")
+        lines += ["### Simulator", "",
+                  "| what | time | frame sets per second | target |", "|---|---|---|---|",
+                  f"| ground-truth masks, 8 Full HD cameras, 3 people, one thread "
+                  f"| {ms(sim):.1f} ms per frame set | {rate:.1f} on one core, "
+                  f"{2 * rate:.1f} on two | >= 30 on two cores |"]
+        colour = by_name.get("BM_SimColour", [None])[0]
+        if colour:
+            lines.append(f"| colour frame, one Full HD camera, one thread | {ms(colour):.1f} ms "
+                         f"| | none |")
+        lines.append("")
+    lines += paper_cell_section(paper_runs, images_dir)
     lines += octree_table("BM_OctreeIncremental",
                           "Octree, incremental update (frame after frame at 30 Hz)", "<= 10 ms")
     lines += octree_table("BM_OctreeFromScratch", "Octree, from scratch", "<= 40 ms")
@@ -140,4 +234,4 @@ plot '{dat_path}' index 0 with linespoints lw 2 pt 7 title 'incremental', \\
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:4])
+    main(*sys.argv[1:5])

@@ -1,0 +1,63 @@
+#pragma once
+/// @file
+/// A simulated work cell: bounds, cameras, static obstacles and foreground
+/// objects, people with scripts, lighting and sensor settings. Loaded from the
+/// scene YAML format documented in docs/scenes.md.
+
+#include <string>
+#include <vector>
+
+#include "common/box.h"
+#include "geometry/camera.h"
+#include "sim/body.h"
+#include "sim/solids.h"
+
+namespace hg::sim {
+
+/// Image formation settings for colour frames.
+struct ImagingSettings {
+  double noise_sigma = 2.0;  ///< Sensor noise, grey levels (0..255 scale), Gaussian.
+  Eigen::Vector3d light_W = Eigen::Vector3d(2.0, 1.5, 3.8);  ///< Point light (ceiling lamp).
+  double ambient = 0.35;            ///< Ambient share of the light, [0, 1].
+  bool shadows = true;              ///< Soft shadows of people and objects.
+  double shadow_softness_m = 0.15;  ///< Width of the penumbra.
+  /// Global light changes: gain(t) = 1 + amplitude * sin(2 pi t / period_s).
+  double light_change_amplitude = 0.0;
+  double light_change_period_s = 20.0;
+  std::uint64_t seed = 1;  ///< Noise seed; frames are deterministic for a seed.
+};
+
+/// One camera of the scene: the calibrated model and its capture time offset.
+struct SceneCamera {
+  geometry::CameraModel model;
+  double time_offset_s = 0.0;  ///< This camera captures at t + time_offset_s.
+};
+
+struct Scene {
+  std::string name;
+  std::string source_file;  ///< Path the scene was loaded from (empty if built in code).
+  common::Box3 bounds;      ///< Surveillance volume.
+  double rate_hz = 30.0;    ///< Frame rate of `hullguard synth`.
+  std::vector<SceneCamera> cameras;
+  std::vector<Solid> obstacles;           ///< Static, known: hide what is behind them.
+  std::vector<Solid> foreground_objects;  ///< Static, unknown to the daemon: crates.
+  std::vector<Person> people;
+  ImagingSettings imaging;
+  bool mask_occlusion = true;  ///< Ground-truth masks leave out what obstacles hide.
+
+  /// The calibrated camera models, in order.
+  [[nodiscard]] std::vector<geometry::CameraModel> CameraModels() const;
+  /// Every obstacle as a circumscribing triangle mesh, in order.
+  [[nodiscard]] std::vector<geometry::TriangleMesh> ObstacleMeshes() const;
+};
+
+/// Parses a scene file. Relative mesh paths are resolved against the file's directory.
+/// @throws common::ConfigError naming the file, the line and the key on any error
+/// (unknown key, missing key, wrong type, bad value, unreadable mesh).
+[[nodiscard]] Scene LoadScene(const std::string& path);
+
+/// Parses scene YAML text; `file` names it in messages, `base_dir` resolves mesh paths.
+[[nodiscard]] Scene ParseScene(const std::string& yaml_text, const std::string& file,
+                               const std::string& base_dir);
+
+}  // namespace hg::sim

@@ -1,0 +1,192 @@
+// End-to-end tests of `hullguard synth` and `hullguard bench`: a real scene
+// file, the real binary, the files it writes read back.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "geometry/camera_yaml.h"
+#include "geometry/mesh.h"
+#include "silhouette/mask_io.h"
+#include "sim/ground_truth.h"
+#include "sim/simulator.h"
+#include "support/run_tool.h"
+
+namespace hg {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Two small cameras (one with lens distortion), a table, one walking person
+// and one who crouches.
+constexpr char kScene[] =
+    R"(scene: {name: tiny, bounds: {min: [0, 0, 0], max: [3, 3, 2.5]}, rate_hz: 10}
+cameras:
+  - {name: a, width: 320, height: 240, K: [240, 0, 159.5, 0, 240, 119.5, 0, 0, 1],
+     distortion: [-0.08, 0.01, 0, 0, 0], position: [-0.4, -0.4, 2.4], look_at: [1.5, 1.5, 0.8]}
+  - {name: b, width: 320, height: 240, K: [240, 0, 159.5, 0, 240, 119.5, 0, 0, 1],
+     position: [3.4, 3.4, 2.4], look_at: [1.5, 1.5, 0.8]}
+capture_offsets_ms: {b: 5}
+obstacles:
+  - {name: table, box: {min: [2.0, 0.3, 0.70], max: [2.8, 1.0, 0.75]}}
+people:
+  - name: walker
+    start: [0.8, 0.8]
+    script:
+      - walk: {path: [[2.0, 2.2]], speed: 1.0}
+  - name: croucher
+    start: [0.7, 2.3]
+    script:
+      - crouch: {duration: 5}
+)";
+
+class SynthCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           std::string("hg_synth_")
+               .append(std::to_string(::getpid()))
+               .append("_")
+               .append(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    std::ofstream(Path("tiny.yaml")) << kScene;
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  static testing::ProcessResult Hullguard(const std::string& args) {
+    return testing::RunTool(HG_HULLGUARD_BIN, args);
+  }
+  fs::path dir_;
+};
+
+TEST_F(SynthCliTest, WritesMasksColourCamerasAndGroundTruthThatMatchTheLibrary) {
+  const auto r = Hullguard("synth --scene " + Path("tiny.yaml") + " --frames 4 --start 0.5 --out " +
+                           Path("out") + " --colour --masks");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const fs::path out = dir_ / "out";
+  for (const char* f :
+       {"manifest.yaml", "scene.yaml", "cameras.yaml", "obstacles.obj", "ground_truth.yaml"}) {
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  }
+  const sim::Scene scene = sim::LoadScene(Path("tiny.yaml"));
+  const auto cameras = geometry::LoadCamerasFile((out / "cameras.yaml").string());
+  ASSERT_EQ(cameras.size(), 2U);
+  EXPECT_EQ(cameras[0].K, scene.cameras[0].model.K);
+  EXPECT_EQ(cameras[0].distortion, scene.cameras[0].model.distortion);
+  EXPECT_GE(geometry::LoadObj((out / "obstacles.obj").string()).triangles.size(), 12U);
+
+  // The files hold exactly what the library renders in-process.
+  sim::Simulator simulator(scene, 1);
+  const sim::GroundTruth truth = sim::ReadGroundTruth((out / "ground_truth.yaml").string());
+  ASSERT_EQ(truth.frames.size(), 4U);
+  EXPECT_EQ(truth.scene, "tiny");
+  std::vector<common::ImageU8> masks;
+  std::vector<common::ImageRgb8> colour;
+  for (int frame = 0; frame < 4; ++frame) {
+    const double t = 0.5 + frame / 10.0;
+    const sim::FrameTruth expected = simulator.Truth(frame, t);
+    ASSERT_EQ(truth.frames[frame].people.size(), 2U);
+    EXPECT_EQ(truth.frames[frame].time_s, t);
+    for (std::size_t p = 0; p < 2; ++p) {
+      EXPECT_EQ(truth.frames[frame].people[p].name, expected.people[p].name);
+      for (int part = 0; part < sim::kNumBodyParts; ++part) {
+        EXPECT_EQ(truth.frames[frame].people[p].state.parts[part].a_W,
+                  expected.people[p].state.parts[part].a_W);
+      }
+    }
+    simulator.RenderMasks(t, &masks);
+    simulator.RenderColour(t, static_cast<std::uint64_t>(frame), &colour);
+    char name[16];
+    std::snprintf(name, sizeof(name), "%06d.png", frame);
+    for (int c = 0; c < 2; ++c) {
+      const std::string cam = scene.cameras[c].model.name;
+      const common::ImageU8 mask = silhouette::ReadGreyImage((out / "masks" / cam / name).string());
+      EXPECT_EQ(mask.pixels, masks[c].pixels) << cam << " frame " << frame;
+      const common::ImageRgb8 rgb =
+          silhouette::ReadRgbImage((out / "colour" / cam / name).string());
+      EXPECT_EQ(rgb.pixels, colour[c].pixels) << cam << " frame " << frame;
+      long long fg = 0;
+      for (auto v : mask.pixels) fg += v != 0;
+      EXPECT_GT(fg, 100) << "the people are in view of " << cam;
+    }
+  }
+}
+
+TEST_F(SynthCliTest, ColourAloneWritesNoMasks) {
+  const auto r =
+      Hullguard("synth --scene " + Path("tiny.yaml") + " --frames 1 --colour --out " + Path("c"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "c" / "colour" / "a" / "000000.png"));
+  EXPECT_FALSE(fs::exists(dir_ / "c" / "masks"));
+}
+
+TEST_F(SynthCliTest, BadSceneNamesFileLineAndKey) {
+  std::ofstream(Path("bad.yaml"))
+      << "scene: {name: x, bounds: {min: [0, 0, 0], max: [1, 1, 1]}}\n"
+         "cameras:\n"
+         "  - {name: a, width: 64, height: 48, K: [50, 0, 31.5, 0, 50, "
+         "23.5, 0, 0, 1], R: [1, 0, 0, 0, 1, 0, 0, 0, 1], t: [0, 0, 2]}\n"
+         "people:\n"
+         "  - name: p\n"
+         "    heigth: 1.8\n";
+  const auto r = Hullguard("synth --scene " + Path("bad.yaml") + " --frames 1 --out " + Path("o"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("bad.yaml:6"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("heigth"), std::string::npos) << r.err;
+  const auto missing = Hullguard("synth --scene " + Path("nope.yaml") + " --out " + Path("o"));
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("nope.yaml"), std::string::npos) << missing.err;
+}
+
+std::string JsonField(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\": ");
+  if (at == std::string::npos) return "";
+  const auto start = at + key.size() + 4;
+  return json.substr(start, json.find_first_of(",}", start) - start);
+}
+
+TEST_F(SynthCliTest, BenchReportsStagesAndTheDenseBaselineAndNoTruthPointFree) {
+  const auto r =
+      Hullguard("bench --scene " + Path("tiny.yaml") +
+                " --frames 5 --start 0.5 --depth 6 --threads 2 --baseline dense:64 --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  for (const char* key : {"median_ms", "p99_ms", "max_ms", "nodes", "leaves", "aborts",
+                          "octree_first_frame_ms", "ratio_to_octree_median"}) {
+    EXPECT_NE(r.out.find(std::string("\"") + key + "\""), std::string::npos) << key;
+  }
+  EXPECT_EQ(JsonField(r.out, "truth_points_free"), "0");
+  EXPECT_GT(std::stoll(JsonField(r.out, "truth_points")), 1000);
+  EXPECT_GT(std::stoll(JsonField(r.out, "leaves")), 8);
+  EXPECT_EQ(JsonField(r.out, "frames"), "5");
+  EXPECT_EQ(JsonField(r.out, "aborts"), "0");
+
+  // A deadline that has passed before the update starts aborts every frame,
+  // and the result stays conservative.
+  const auto aborted = Hullguard("bench --scene " + Path("tiny.yaml") +
+                                 " --frames 3 --depth 6 --deadline-ms 0.000001 --json");
+  ASSERT_EQ(aborted.code, 0) << aborted.err;
+  EXPECT_EQ(JsonField(aborted.out, "aborts"), "3");
+  EXPECT_EQ(JsonField(aborted.out, "truth_points_free"), "0");
+
+  const auto bad = Hullguard("bench --scene " + Path("tiny.yaml") + " --baseline voxels:3");
+  EXPECT_EQ(bad.code, 2);
+  EXPECT_NE(bad.err.find("--baseline"), std::string::npos) << bad.err;
+}
+
+// End to end on the shipped paper cell (8 Full HD cameras, obstacles, capture
+// offsets, distortion where the scene has it): no point inside a person is free.
+TEST_F(SynthCliTest, PaperCellBenchAtDepthSevenKeepsEveryPersonPointOccupied) {
+  const auto r = Hullguard(std::string("bench --scene ") + HG_SOURCE_DIR +
+                           "/config/scenes/paper_cell.yaml --frames 6 --start 4 --depth 7 "
+                           "--threads 2 --truth-points 3000 --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_EQ(JsonField(r.out, "cameras"), "8");
+  EXPECT_EQ(JsonField(r.out, "truth_points_free"), "0");
+  EXPECT_GT(std::stoll(JsonField(r.out, "truth_points")), 6 * 3 * 2000);
+}
+
+}  // namespace
+}  // namespace hg

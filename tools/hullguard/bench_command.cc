@@ -1,0 +1,224 @@
+// `hullguard bench`: the engine on a simulated scene, frame by frame, with
+// per-stage timings, and optionally a dense per-voxel carve as the baseline.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <optional>
+#include <string>
+
+#include "common/config_error.h"
+#include "hullguard/commands.h"
+#include "hullguard/dense_baseline.h"
+#include "hullguard/scene_engine.h"
+#include "sim/scene.h"
+
+namespace hg::tools {
+namespace {
+
+struct BenchFlags {
+  std::string scene;
+  int frames = 60;
+  double start_s = 0.0;
+  int threads = 2;
+  int depth = 10;
+  int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
+  double deadline_ms = 0.0;
+  std::string baseline;
+  int truth_points = 2000;
+  int cameras = 0;
+  bool json = false;
+};
+
+/// Median, 99th percentile and maximum of a series (nearest rank).
+struct Summary {
+  double median = 0.0;
+  double p99 = 0.0;
+  double max = 0.0;
+};
+
+Summary Summarise(std::vector<double> v) {
+  if (v.empty()) return {};
+  std::sort(v.begin(), v.end());
+  auto at = [&](double q) {
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5))];
+  };
+  return {at(0.5), at(0.99), v.back()};
+}
+
+std::string JsonSummary(const Summary& s) {
+  char buf[128];
+  std::snprintf(buf, sizeof(buf), "{\"median_ms\": %.3f, \"p99_ms\": %.3f, \"max_ms\": %.3f}",
+                s.median, s.p99, s.max);
+  return buf;
+}
+
+int ParseDenseBaseline(const std::string& spec) {
+  const std::string prefix = "dense:";
+  if (spec.rfind(prefix, 0) != 0) {
+    throw common::ConfigError("--baseline: expected dense:R (e.g. dense:256), got '" + spec + "'");
+  }
+  int r = 0;
+  try {
+    std::size_t used = 0;
+    r = std::stoi(spec.substr(prefix.size()), &used);
+    if (used != spec.size() - prefix.size()) r = 0;
+  } catch (const std::exception&) {
+    r = 0;
+  }
+  if (r < 8 || r > 1024) {
+    throw common::ConfigError("--baseline: R must be an integer in 8..1024, got '" + spec + "'");
+  }
+  return r;
+}
+
+int RunBench(const BenchFlags& f) {
+  const int dense_res = f.baseline.empty() ? 0 : ParseDenseBaseline(f.baseline);
+  sim::Scene scene = sim::LoadScene(f.scene);
+  if (f.cameras > static_cast<int>(scene.cameras.size())) {
+    throw common::ConfigError("--cameras " + std::to_string(f.cameras) + ": scene " + f.scene +
+                              " has only " + std::to_string(scene.cameras.size()) + " cameras");
+  }
+  if (f.cameras > 0) scene.cameras.resize(static_cast<std::size_t>(f.cameras));
+  const double dt = 1.0 / scene.rate_hz;
+  SceneEngine engine(std::move(scene), {f.depth, f.threads, f.boundary_coarsening});
+  const sim::Scene& s = engine.scene();
+
+  std::optional<DenseCarver> dense;
+  std::optional<common::WorkerPool> dense_pool;
+  if (dense_res > 0) {
+    dense.emplace(s.bounds, dense_res, engine.pinholes());
+    dense_pool.emplace(f.threads);
+  }
+
+  std::vector<double> render_ms, quadtree_ms, octree_ms, dense_ms, visited;
+  double first_octree_ms = 0.0;
+  int aborts = 0;
+  TruthCheck truth;
+  std::int64_t dense_carved = 0, dense_points = 0;
+  std::vector<const common::ImageU8*> pinhole_masks(s.cameras.size());
+  for (int frame = 0; frame < f.frames; ++frame) {
+    const double t = f.start_s + frame * dt;
+    octree::UpdateControl control;
+    if (f.deadline_ms > 0) {
+      control.deadline = std::chrono::steady_clock::now() +
+                         std::chrono::microseconds(static_cast<std::int64_t>(f.deadline_ms * 1e3));
+    }
+    const FrameTimes times = engine.Step(t, control);
+    render_ms.push_back(times.render_ms);
+    quadtree_ms.push_back(times.quadtree_ms);
+    aborts += times.octree.aborted;
+    // Frame 0 builds the tree from nothing; the others are incremental.
+    if (frame == 0) {
+      first_octree_ms = times.octree.update_ms;
+    } else {
+      octree_ms.push_back(times.octree.update_ms);
+      visited.push_back(static_cast<double>(times.octree.nodes_visited));
+    }
+    const std::vector<Eigen::Vector3d> points =
+        SampleTruthPoints(s, t, f.truth_points, 1000 + static_cast<std::uint64_t>(frame));
+    const TruthCheck check = CheckTruth(engine.tree(), points);
+    truth.points += check.points;
+    truth.reported_free += check.reported_free;
+    if (dense) {
+      for (std::size_t c = 0; c < s.cameras.size(); ++c) {
+        pinhole_masks[c] = &engine.PinholeMask(static_cast<int>(c));
+      }
+      const auto t0 = std::chrono::steady_clock::now();
+      dense->Carve(pinhole_masks, *dense_pool);
+      dense_ms.push_back(
+          std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      for (const Eigen::Vector3d& p : points) {
+        if (!s.bounds.Contains(p)) continue;
+        ++dense_points;
+        dense_carved += !dense->Occupied(p);
+      }
+    }
+  }
+
+  const Summary render = Summarise(render_ms), quad = Summarise(quadtree_ms),
+                oct = Summarise(octree_ms), dense_sum = Summarise(dense_ms);
+  const octree::Octree& tree = engine.tree();
+  const auto& cam0 = s.cameras.front().model;
+  const double ratio = oct.median > 0 ? dense_sum.median / oct.median : 0.0;
+  if (f.json) {
+    std::printf(
+        "{\"scene\": \"%s\", \"cameras\": %zu, \"width\": %d, \"height\": %d, \"frames\": %d, "
+        "\"depth\": %d, \"threads\": %d, \"deadline_ms\": %.3f,\n \"stages\": {\"render\": %s, "
+        "\"quadtree\": %s, \"octree\": %s},\n \"octree_first_frame_ms\": %.3f, \"nodes\": %lld, "
+        "\"leaves\": %lld, \"visited_per_frame_median\": %.0f, \"aborts\": %d, "
+        "\"truth_points\": %lld, \"truth_points_free\": %lld",
+        s.name.c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames, f.depth, f.threads,
+        f.deadline_ms, JsonSummary(render).c_str(), JsonSummary(quad).c_str(),
+        JsonSummary(oct).c_str(), first_octree_ms, static_cast<long long>(tree.NumNodes()),
+        static_cast<long long>(tree.NumLeaves()), Summarise(visited).median, aborts,
+        static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
+    if (dense) {
+      std::printf(
+          ",\n \"baseline\": {\"kind\": \"dense\", \"resolution\": %d, \"time\": %s, "
+          "\"ratio_to_octree_median\": %.3f, \"truth_points\": %lld, "
+          "\"truth_points_carved\": %lld}",
+          dense_res, JsonSummary(dense_sum).c_str(), ratio, static_cast<long long>(dense_points),
+          static_cast<long long>(dense_carved));
+    }
+    std::printf("}\n");
+  } else {
+    std::printf(
+        "hullguard bench: scene %s, %zu cameras %dx%d, %d frames at %.1f Hz, depth %d (%d^3), "
+        "%d threads\n",
+        s.name.c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames, s.rate_hz, f.depth,
+        1 << f.depth, f.threads);
+    std::printf("  %-34s %9s %9s %9s\n", "stage (ms per frame)", "median", "p99", "max");
+    auto row = [](const char* name, const Summary& x) {
+      std::printf("  %-34s %9.2f %9.2f %9.2f\n", name, x.median, x.p99, x.max);
+    };
+    row("render masks (simulator)", render);
+    row("mask -> quadtree (all cameras)", quad);
+    row("octree update (incremental)", oct);
+    std::printf("  octree first frame (from scratch): %.2f ms\n", first_octree_ms);
+    std::printf(
+        "  nodes %lld, leaves %lld (last frame); visited per frame (median) %.0f; "
+        "aborts %d of %d frames\n",
+        static_cast<long long>(tree.NumNodes()), static_cast<long long>(tree.NumLeaves()),
+        Summarise(visited).median, aborts, f.frames);
+    std::printf("  ground truth: %lld points inside people, %lld reported free\n",
+                static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
+    if (dense) {
+      row(("dense " + std::to_string(dense_res) + "^3 carve").c_str(), dense_sum);
+      std::printf(
+          "  dense/octree median ratio %.2f; dense carve wrongly frees %lld of %lld "
+          "ground-truth points\n",
+          ratio, static_cast<long long>(dense_carved), static_cast<long long>(dense_points));
+    }
+  }
+  return truth.reported_free == 0 ? kExitOk : kExitFailure;
+}
+
+}  // namespace
+
+void RegisterBench(CLI::App& app, int* exit_code) {
+  auto flags = std::make_shared<BenchFlags>();
+  CLI::App* cmd =
+      app.add_subcommand("bench", "Time the engine on a simulated scene, frame by frame");
+  cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
+  cmd->add_option("--frames", flags->frames, "Frames to run")->check(CLI::Range(2, 100000));
+  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)");
+  cmd->add_option("--cameras", flags->cameras, "Use only the scene's first N cameras")
+      ->check(CLI::Range(1, 16));
+  cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
+  cmd->add_option("--depth", flags->depth, "Octree depth")->check(CLI::Range(3, 16));
+  cmd->add_option("--boundary-coarsening", flags->boundary_coarsening,
+                  "Levels above --depth at which static view and obstacle edges stop")
+      ->check(CLI::Range(0, 16));
+  cmd->add_option("--deadline-ms", flags->deadline_ms,
+                  "Abort each octree update after this long (0: no deadline)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--baseline", flags->baseline,
+                  "dense:R also times a dense per-voxel carve at R^3 on the same frames");
+  cmd->add_option("--truth-points", flags->truth_points,
+                  "Points sampled inside each person per frame for the ground-truth check")
+      ->check(CLI::Range(0, 1000000));
+  cmd->add_flag("--json", flags->json, "Print one JSON object");
+  cmd->callback([flags, exit_code] { *exit_code = RunBench(*flags); });
+}
+
+}  // namespace hg::tools

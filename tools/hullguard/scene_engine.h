@@ -1,0 +1,76 @@
+#pragma once
+/// @file
+/// The reconstruction engine driven by the simulator, frame by frame: render
+/// masks, undistort them conservatively, build quadtrees, update the octree.
+/// Shared by `hullguard bench` and `hullguard demo`.
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "common/image.h"
+#include "octree/octree.h"
+#include "silhouette/quadtree.h"
+#include "silhouette/undistort.h"
+#include "sim/simulator.h"
+
+namespace hg::tools {
+
+struct SceneEngineOptions {
+  int depth = 10;
+  int threads = 2;
+  int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
+};
+
+/// Wall-clock times of one frame's stages.
+struct FrameTimes {
+  double render_ms = 0.0;  ///< Simulator: masks of every camera (on the worker threads).
+  double quadtree_ms =
+      0.0;  ///< Undistortion where needed + quadtree build, all cameras, one thread.
+  octree::UpdateStats octree;
+};
+
+class SceneEngine {
+ public:
+  SceneEngine(sim::Scene scene, const SceneEngineOptions& options);
+
+  /// Renders the scene at t_s and updates the octree under `control`.
+  FrameTimes Step(double t_s, const octree::UpdateControl& control = {});
+
+  [[nodiscard]] const octree::Octree& tree() const { return *tree_; }
+  [[nodiscard]] const sim::Scene& scene() const { return simulator_.scene(); }
+  [[nodiscard]] sim::Simulator& simulator() { return simulator_; }
+  /// Masks of the last Step() as the cameras saw them (with lens distortion).
+  [[nodiscard]] const std::vector<common::ImageU8>& masks() const { return masks_; }
+  /// Masks of the last Step() in the pinhole cameras (what the octree used).
+  [[nodiscard]] const common::ImageU8& PinholeMask(int camera) const;
+  [[nodiscard]] const std::vector<geometry::CameraModel>& pinholes() const { return pinholes_; }
+
+ private:
+  sim::Simulator simulator_;
+  std::vector<geometry::CameraModel> pinholes_;
+  std::vector<std::unique_ptr<silhouette::ConservativeUndistorter>> undistorters_;
+  std::unique_ptr<octree::Octree> tree_;
+  std::vector<common::ImageU8> masks_;
+  std::vector<common::ImageU8> undistorted_;
+  std::vector<silhouette::SilhouetteQuadtree> quadtrees_;
+  std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
+};
+
+/// Points sampled inside people, checked against the tree.
+struct TruthCheck {
+  std::int64_t points = 0;         ///< Points inside a person at every camera's capture time.
+  std::int64_t reported_free = 0;  ///< Of those, reported free by the tree (must be 0).
+};
+
+/// Samples `per_person` points inside each person's body at scene time t_s and
+/// keeps those that are inside the body at every camera's capture time too
+/// (with capture offsets a camera saw the body elsewhere; only points every
+/// camera saw inside are guaranteed occupied). Deterministic for `seed`.
+[[nodiscard]] std::vector<Eigen::Vector3d> SampleTruthPoints(const sim::Scene& scene, double t_s,
+                                                             int per_person, std::uint64_t seed);
+
+[[nodiscard]] TruthCheck CheckTruth(const octree::Octree& tree,
+                                    const std::vector<Eigen::Vector3d>& points);
+
+}  // namespace hg::tools
