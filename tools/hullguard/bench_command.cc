@@ -3,12 +3,16 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <functional>
 #include <optional>
 #include <string>
 
 #include "common/config_error.h"
 #include "hullguard/commands.h"
 #include "hullguard/dense_baseline.h"
+#ifdef HG_WITH_OPEN3D
+#include "hullguard/open3d_baseline.h"
+#endif
 #include "hullguard/scene_engine.h"
 #include "sim/scene.h"
 
@@ -52,27 +56,43 @@ std::string JsonSummary(const Summary& s) {
   return buf;
 }
 
-int ParseDenseBaseline(const std::string& spec) {
-  const std::string prefix = "dense:";
-  if (spec.rfind(prefix, 0) != 0) {
-    throw common::ConfigError("--baseline: expected dense:R (e.g. dense:256), got '" + spec + "'");
+struct BaselineSpec {
+  std::string kind;  ///< "dense" or "open3d"; empty: none.
+  int resolution = 0;
+};
+
+BaselineSpec ParseBaseline(const std::string& spec) {
+  if (spec.empty()) return {};
+  const auto colon = spec.find(':');
+  BaselineSpec out;
+  out.kind = spec.substr(0, colon);
+  if (colon == std::string::npos || (out.kind != "dense" && out.kind != "open3d")) {
+    throw common::ConfigError("--baseline: expected dense:R or open3d:R (e.g. dense:256), got '" +
+                              spec + "'");
   }
-  int r = 0;
   try {
     std::size_t used = 0;
-    r = std::stoi(spec.substr(prefix.size()), &used);
-    if (used != spec.size() - prefix.size()) r = 0;
+    out.resolution = std::stoi(spec.substr(colon + 1), &used);
+    if (used != spec.size() - colon - 1) out.resolution = 0;
   } catch (const std::exception&) {
-    r = 0;
+    out.resolution = 0;
   }
-  if (r < 8 || r > 1024) {
+  if (out.resolution < 8 || out.resolution > 1024) {
     throw common::ConfigError("--baseline: R must be an integer in 8..1024, got '" + spec + "'");
   }
-  return r;
+#ifndef HG_WITH_OPEN3D
+  if (out.kind == "open3d") {
+    throw common::ConfigError(
+        "--baseline open3d:R: this hullguard was built without Open3D (configure with "
+        "-DHG_WITH_OPEN3D=ON, needs libopen3d-dev)");
+  }
+#endif
+  return out;
 }
 
 int RunBench(const BenchFlags& f) {
-  const int dense_res = f.baseline.empty() ? 0 : ParseDenseBaseline(f.baseline);
+  const BaselineSpec baseline = ParseBaseline(f.baseline);
+  const int dense_res = baseline.resolution;
   sim::Scene scene = sim::LoadScene(f.scene);
   if (f.cameras > static_cast<int>(scene.cameras.size())) {
     throw common::ConfigError("--cameras " + std::to_string(f.cameras) + ": scene " + f.scene +
@@ -83,12 +103,26 @@ int RunBench(const BenchFlags& f) {
   SceneEngine engine(std::move(scene), {f.depth, f.threads, f.boundary_coarsening});
   const sim::Scene& s = engine.scene();
 
-  std::optional<DenseCarver> dense;
+  // The baseline carves the same undistorted masks and answers point queries.
+  std::optional<DenseCarver> dense_carver;
   std::optional<common::WorkerPool> dense_pool;
-  if (dense_res > 0) {
-    dense.emplace(s.bounds, dense_res, engine.pinholes());
+  std::function<void(const std::vector<const common::ImageU8*>&)> baseline_carve;
+  std::function<bool(const Eigen::Vector3d&)> baseline_occupied;
+  if (baseline.kind == "dense") {
+    dense_carver.emplace(s.bounds, dense_res, engine.pinholes());
     dense_pool.emplace(f.threads);
+    baseline_carve = [&](const auto& masks) { dense_carver->Carve(masks, *dense_pool); };
+    baseline_occupied = [&](const Eigen::Vector3d& p) { return dense_carver->Occupied(p); };
   }
+#ifdef HG_WITH_OPEN3D
+  std::optional<Open3dCarver> open3d_carver;
+  if (baseline.kind == "open3d") {
+    open3d_carver.emplace(s.bounds, dense_res, engine.pinholes());
+    baseline_carve = [&](const auto& masks) { open3d_carver->Carve(masks); };
+    baseline_occupied = [&](const Eigen::Vector3d& p) { return open3d_carver->Occupied(p); };
+  }
+#endif
+  const bool has_baseline = static_cast<bool>(baseline_carve);
 
   std::vector<double> render_ms, quadtree_ms, octree_ms, dense_ms, visited;
   double first_octree_ms = 0.0;
@@ -119,18 +153,18 @@ int RunBench(const BenchFlags& f) {
     const TruthCheck check = CheckTruth(engine.tree(), points);
     truth.points += check.points;
     truth.reported_free += check.reported_free;
-    if (dense) {
+    if (has_baseline) {
       for (std::size_t c = 0; c < s.cameras.size(); ++c) {
         pinhole_masks[c] = &engine.PinholeMask(static_cast<int>(c));
       }
       const auto t0 = std::chrono::steady_clock::now();
-      dense->Carve(pinhole_masks, *dense_pool);
+      baseline_carve(pinhole_masks);
       dense_ms.push_back(
           std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
       for (const Eigen::Vector3d& p : points) {
         if (!s.bounds.Contains(p)) continue;
         ++dense_points;
-        dense_carved += !dense->Occupied(p);
+        dense_carved += !baseline_occupied(p);
       }
     }
   }
@@ -152,13 +186,13 @@ int RunBench(const BenchFlags& f) {
         JsonSummary(oct).c_str(), first_octree_ms, static_cast<long long>(tree.NumNodes()),
         static_cast<long long>(tree.NumLeaves()), Summarise(visited).median, aborts,
         static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
-    if (dense) {
+    if (has_baseline) {
       std::printf(
-          ",\n \"baseline\": {\"kind\": \"dense\", \"resolution\": %d, \"time\": %s, "
+          ",\n \"baseline\": {\"kind\": \"%s\", \"resolution\": %d, \"time\": %s, "
           "\"ratio_to_octree_median\": %.3f, \"truth_points\": %lld, "
           "\"truth_points_carved\": %lld}",
-          dense_res, JsonSummary(dense_sum).c_str(), ratio, static_cast<long long>(dense_points),
-          static_cast<long long>(dense_carved));
+          baseline.kind.c_str(), dense_res, JsonSummary(dense_sum).c_str(), ratio,
+          static_cast<long long>(dense_points), static_cast<long long>(dense_carved));
     }
     std::printf("}\n");
   } else {
@@ -182,12 +216,13 @@ int RunBench(const BenchFlags& f) {
         Summarise(visited).median, aborts, f.frames);
     std::printf("  ground truth: %lld points inside people, %lld reported free\n",
                 static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
-    if (dense) {
-      row(("dense " + std::to_string(dense_res) + "^3 carve").c_str(), dense_sum);
+    if (has_baseline) {
+      row((baseline.kind + " " + std::to_string(dense_res) + "^3 carve").c_str(), dense_sum);
       std::printf(
-          "  dense/octree median ratio %.2f; dense carve wrongly frees %lld of %lld "
+          "  %s/octree median ratio %.2f; the %s carve wrongly frees %lld of %lld "
           "ground-truth points\n",
-          ratio, static_cast<long long>(dense_carved), static_cast<long long>(dense_points));
+          baseline.kind.c_str(), ratio, baseline.kind.c_str(), static_cast<long long>(dense_carved),
+          static_cast<long long>(dense_points));
     }
   }
   return truth.reported_free == 0 ? kExitOk : kExitFailure;
@@ -213,7 +248,8 @@ void RegisterBench(CLI::App& app, int* exit_code) {
                   "Abort each octree update after this long (0: no deadline)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--baseline", flags->baseline,
-                  "dense:R also times a dense per-voxel carve at R^3 on the same frames");
+                  "dense:R also times a dense per-voxel carve at R^3 on the same frames; "
+                  "open3d:R Open3D's VoxelGrid::CarveSilhouette (builds with HG_WITH_OPEN3D)");
   cmd->add_option("--truth-points", flags->truth_points,
                   "Points sampled inside each person per frame for the ground-truth check")
       ->check(CLI::Range(0, 1000000));

@@ -90,14 +90,14 @@ set xlabel '{label}'
 set ylabel 'ms per frame'
 set logscale y
 set grid
-set key left top
+set key outside below font ',9' maxrows 3
 plot '{dat_path}' index {i} using 1:2 with linespoints lw 2 pt 7 title 'octree median', \\
      '{dat_path}' index {i} using 1:3 with linespoints lw 2 pt 5 title 'octree p99', \\
      '{dat_path}' index {i} using 1:4 with linespoints lw 2 pt 9 title 'quadtrees (all cameras)', \\
      10 with lines dt 2 lc rgb 'dark-green' title 'target median (10 ms)', \\
      25 with lines dt 2 lc rgb 'red' title 'target p99 (25 ms)'
 """)
-    script = (f"set terminal pngcairo size 1500,480 font ',10'\nset output '{png}'\n"
+    script = (f"set terminal pngcairo size 1500,540 font ',10'\nset output '{png}'\n"
               "set multiplot layout 1,3\n" + "".join(plots) + "unset multiplot\n")
     subprocess.run(["gnuplot"], input=script, text=True, check=True)
     out += ["![paper cell: octree time per frame against depth, cameras and threads]"
