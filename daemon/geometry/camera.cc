@@ -1,5 +1,7 @@
 #include "geometry/camera.h"
 
+#include <algorithm>
+
 #include <cmath>
 
 #include <Eigen/Householder>
@@ -24,18 +26,59 @@ Eigen::Vector2d CameraModel::ProjectPinholeC(const Eigen::Vector3d& p_C) const {
   return uvw.head<2>() / uvw.z();
 }
 
-Eigen::Vector2d CameraModel::DistortNormalized(const Eigen::Vector2d& xy) const {
-  const double k1 = distortion[0];
-  const double k2 = distortion[1];
-  const double p1 = distortion[2];
-  const double p2 = distortion[3];
-  const double k3 = distortion[4];
+Eigen::Vector2d ApplyDistortion(const std::array<double, 5>& k, const Eigen::Vector2d& xy,
+                                Eigen::Matrix2d* jacobian) {
   const double x = xy.x();
   const double y = xy.y();
   const double r2 = x * x + y * y;
-  const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
+  const double radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
+  const double p1 = k[2];
+  const double p2 = k[3];
+  if (jacobian != nullptr) {
+    const double d_radial = k[0] + r2 * (2.0 * k[1] + 3.0 * r2 * k[4]);  // d radial / d r2
+    (*jacobian)(0, 0) = radial + 2.0 * x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x;
+    (*jacobian)(0, 1) = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y;
+    (*jacobian)(1, 0) = (*jacobian)(0, 1);
+    (*jacobian)(1, 1) = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x;
+  }
   return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
           y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
+}
+
+bool InvertDistortion(const std::array<double, 5>& k, const Eigen::Vector2d& xd,
+                      Eigen::Vector2d* x) {
+  constexpr int kMaxIterations = 60;
+  const double target = 1e-12 * std::max(1.0, xd.norm());
+  Eigen::Matrix2d jacobian;
+  Eigen::Vector2d residual = ApplyDistortion(k, *x, &jacobian) - xd;
+  double residual_norm = residual.norm();
+  for (int iter = 0; iter < kMaxIterations; ++iter) {
+    if (!(jacobian.determinant() > 0.0)) return false;
+    if (residual_norm <= target) return x->allFinite();
+    const Eigen::Vector2d step = jacobian.inverse() * residual;
+    // Halve the step until the residual shrinks: plain Newton overshoots on
+    // strongly distorting lenses near the image corners.
+    for (double t = 1.0;; t *= 0.5) {
+      if (t < 1e-6) return false;
+      const Eigen::Vector2d candidate = *x - t * step;
+      Eigen::Matrix2d candidate_jacobian;
+      const Eigen::Vector2d candidate_residual =
+          ApplyDistortion(k, candidate, &candidate_jacobian) - xd;
+      const double candidate_norm = candidate_residual.norm();
+      if (candidate_norm < residual_norm) {
+        *x = candidate;
+        jacobian = candidate_jacobian;
+        residual = candidate_residual;
+        residual_norm = candidate_norm;
+        break;
+      }
+    }
+  }
+  return false;
+}
+
+Eigen::Vector2d CameraModel::DistortNormalized(const Eigen::Vector2d& xy) const {
+  return ApplyDistortion(distortion, xy);
 }
 
 std::optional<Eigen::Vector2d> CameraModel::Project(const Eigen::Vector3d& p_W) const {

@@ -63,6 +63,20 @@ struct CameraModel {
   [[nodiscard]] Eigen::Matrix<double, 3, 4> ProjectionMatrix() const;
 };
 
+/// The OpenCV lens model (k1 k2 p1 p2 k3) applied to normalised image
+/// coordinates (x/z, y/z); `jacobian`, when not null, receives its derivative.
+[[nodiscard]] Eigen::Vector2d ApplyDistortion(const std::array<double, 5>& k,
+                                              const Eigen::Vector2d& xy,
+                                              Eigen::Matrix2d* jacobian = nullptr);
+
+/// Inverts ApplyDistortion: solves ApplyDistortion(k, x) = xd by damped Newton
+/// from the start value in *x, to a residual of 1e-12 * max(1, |xd|). Returns
+/// false without convergence or where the Jacobian is not positive (past a fold
+/// of the polynomial model, where it no longer describes a lens); *x is then
+/// unspecified.
+[[nodiscard]] bool InvertDistortion(const std::array<double, 5>& k, const Eigen::Vector2d& xd,
+                                    Eigen::Vector2d* x);
+
 /// Decomposes a 3x4 projection matrix of any scale and sign into K, R, t (RQ
 /// decomposition, K with positive diagonal and K(2,2) == 1, det R == +1).
 /// Returns an error message when P's left 3x3 block has rank < 3.

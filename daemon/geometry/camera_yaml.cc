@@ -13,6 +13,7 @@
 #include <Eigen/LU>
 
 #include "common/config_error.h"
+#include "common/yaml_file.h"
 
 namespace hg::geometry {
 namespace {
@@ -20,7 +21,7 @@ namespace {
 using common::ConfigError;
 
 /// yaml-cpp marks are 0-based; messages use 1-based lines (0 = unknown, omitted).
-int LineOf(const YAML::Node& node) { return node.Mark().line + 1; }
+int LineOf(const YAML::Node& node) { return common::YamlLine(node); }
 
 /// Largest image side: the undistorter stores pixel indices in 16 bits and
 /// reserves 0xFFFF.
@@ -322,18 +323,7 @@ std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::stri
 }
 
 std::vector<CameraModel> LoadCamerasFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    throw ConfigError::At(path, 0, "cannot open");
-  }
-  YAML::Node root;
-  try {
-    root = YAML::Load(in);
-  } catch (const YAML::ParserException& e) {
-    throw ConfigError::At(path, e.mark.line + 1, "malformed YAML: " + e.msg);
-  } catch (const YAML::Exception& e) {
-    throw ConfigError::At(path, e.mark.line + 1, "cannot read YAML: " + e.msg);
-  }
+  const YAML::Node root = common::LoadYamlFile(path);
   if (!root.IsMap()) {
     throw ConfigError::At(path, root.IsDefined() ? LineOf(root) : 0,
                           "expected a map with the single key 'cameras'");
@@ -393,16 +383,7 @@ void WriteCamerasFile(const std::string& path, const std::vector<CameraModel>& c
     out << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  if (!out.good()) {
-    throw ConfigError::At(path, 0, "cannot write: " + out.GetLastError());
-  }
-
-  std::ofstream file(path, std::ios::out | std::ios::trunc);
-  file << out.c_str() << '\n';
-  file.close();
-  if (!file) {
-    throw ConfigError::At(path, 0, "cannot write");
-  }
+  common::WriteYamlFile(path, out);
 }
 
 }  // namespace hg::geometry

@@ -129,54 +129,6 @@ const std::array<float, 65536>& GaussianTable() {
 // -----------------------------------------------------------------------------
 // Geometry helpers.
 
-Vector2d Distort(const std::array<double, 5>& k, const Vector2d& p, Matrix2d* jacobian) {
-  const double x = p.x();
-  const double y = p.y();
-  const double r2 = x * x + y * y;
-  const double radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
-  const double g = k[0] + r2 * (2.0 * k[1] + 3.0 * k[4] * r2);
-  const double p1 = k[2];
-  const double p2 = k[3];
-  if (jacobian != nullptr) {
-    (*jacobian)(0, 0) = radial + 2.0 * x * x * g + 2.0 * p1 * y + 6.0 * p2 * x;
-    (*jacobian)(0, 1) = 2.0 * x * y * g + 2.0 * p1 * x + 2.0 * p2 * y;
-    (*jacobian)(1, 0) = (*jacobian)(0, 1);
-    (*jacobian)(1, 1) = radial + 2.0 * y * y * g + 6.0 * p1 * y + 2.0 * p2 * x;
-  }
-  return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-          y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
-}
-
-/// Damped Newton inversion of the lens model from the start value in *x.
-bool Undistort(const std::array<double, 5>& k, const Vector2d& xd, Vector2d* x) {
-  const double target = 1e-12 * std::max(1.0, xd.norm());
-  Matrix2d jacobian;
-  Vector2d residual = Distort(k, *x, &jacobian) - xd;
-  double norm = residual.norm();
-  for (int iter = 0; iter < 50; ++iter) {
-    if (!(jacobian.determinant() > 0.0)) return false;
-    if (norm <= target) return x->allFinite();
-    const Vector2d step = jacobian.inverse() * residual;
-    double t = 1.0;
-    for (;;) {
-      const Vector2d candidate = *x - t * step;
-      Matrix2d candidate_jacobian;
-      const Vector2d candidate_residual = Distort(k, candidate, &candidate_jacobian) - xd;
-      const double candidate_norm = candidate_residual.norm();
-      if (candidate_norm < norm) {
-        *x = candidate;
-        jacobian = candidate_jacobian;
-        residual = candidate_residual;
-        norm = candidate_norm;
-        break;
-      }
-      t *= 0.5;
-      if (t < 1e-6) return false;
-    }
-  }
-  return false;
-}
-
 /// Entry parameter t >= 0 of the ray t u (from the origin) into a sphere.
 double SphereEntry(const Vector3d& u, const Vector3d& c, double r) {
   const double a = u.squaredNorm();
@@ -441,7 +393,7 @@ struct ColourRenderer::Impl {
                                                 Vector2d(box.x0, box.y0 + s * (box.y1 - box.y0)),
                                                 Vector2d(box.x1, box.y0 + s * (box.y1 - box.y0))};
         for (const Vector2d& p : points) {
-          const Vector2d d = Distort(camera.distortion, p, nullptr);
+          const Vector2d d = geometry::ApplyDistortion(camera.distortion, p);
           const double pu = K(0, 0) * d.x() + K(0, 1) * d.y() + K(0, 2);
           const double pv = K(1, 1) * d.y() + K(1, 2);
           lo_u = std::min(lo_u, pu);
@@ -494,7 +446,7 @@ struct ColourRenderer::Impl {
                             K_inv(1, 1) * v + K_inv(1, 2));
           Vector2d x = std::isfinite(guess.x()) ? guess : xd;
           const std::size_t i = static_cast<std::size_t>(v) * width + u;
-          if (!Undistort(camera.distortion, xd, &x)) {
+          if (!geometry::InvertDistortion(camera.distortion, xd, &x)) {
             guess = Vector2d(kInf, kInf);
             map_x.at<float>(v, u) = -1e6F;
             map_y.at<float>(v, u) = -1e6F;

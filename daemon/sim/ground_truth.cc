@@ -53,6 +53,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "common/config_error.h"
+#include "common/yaml_file.h"
 
 namespace hg::sim {
 namespace {
@@ -61,7 +62,7 @@ using common::ConfigError;
 using Eigen::Vector3d;
 
 /// yaml-cpp marks are 0-based; messages use 1-based lines (0 = unknown, omitted).
-int LineOf(const YAML::Node& node) { return node.Mark().line + 1; }
+int LineOf(const YAML::Node& node) { return common::YamlLine(node); }
 
 /// One YAML map with a fixed set of keys, all required. `where` is the key
 /// path of the map in messages ("frames[2].people[0]"), empty at the top.
@@ -355,31 +356,11 @@ void WriteGroundTruth(const std::string& path, const GroundTruth& truth) {
   }
   out << YAML::EndSeq;
   out << YAML::EndMap;
-  if (!out.good()) {
-    throw ConfigError::At(path, 0, "cannot write: " + out.GetLastError());
-  }
-
-  std::ofstream file(path, std::ios::out | std::ios::trunc);
-  file << out.c_str() << '\n';
-  file.close();
-  if (!file) {
-    throw ConfigError::At(path, 0, "cannot write");
-  }
+  common::WriteYamlFile(path, out);
 }
 
 GroundTruth ReadGroundTruth(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) {
-    throw ConfigError::At(path, 0, "cannot open");
-  }
-  YAML::Node root;
-  try {
-    root = YAML::Load(in);
-  } catch (const YAML::ParserException& e) {
-    throw ConfigError::At(path, e.mark.line + 1, "malformed YAML: " + e.msg);
-  } catch (const YAML::Exception& e) {
-    throw ConfigError::At(path, e.mark.line + 1, "cannot read YAML: " + e.msg);
-  }
+  const YAML::Node root = common::LoadYamlFile(path);
   if (!root.IsMap()) {
     throw ConfigError::At(path, root.IsDefined() ? LineOf(root) : 0,
                           "expected a map with the keys 'ground_truth' and 'frames'");

@@ -52,10 +52,6 @@ constexpr double kMinFrontZ = 1e-3;
 /// occlusion rule only drops capsules clearly behind an obstacle.
 constexpr double kHiddenMarginM = 0.01;
 
-/// Damped Newton inversion of the lens model.
-constexpr double kUndistortResidual = 1e-12;
-constexpr int kUndistortMaxIterations = 50;
-
 /// Bounds of a set of rays in normalised image coordinates (x/z, y/z).
 struct NormBox {
   double x0 = -kInf;
@@ -71,61 +67,6 @@ struct NormBox {
   }
   static NormBox Empty() { return {kInf, -kInf, kInf, -kInf}; }
 };
-
-/// OpenCV distortion of normalised coordinates and its Jacobian.
-Vector2d Distort(const std::array<double, 5>& k, const Vector2d& p, Matrix2d* jacobian) {
-  const double x = p.x();
-  const double y = p.y();
-  const double r2 = x * x + y * y;
-  const double radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
-  const double g = k[0] + r2 * (2.0 * k[1] + 3.0 * k[4] * r2);  // d(radial)/d(r2)
-  const double p1 = k[2];
-  const double p2 = k[3];
-  (*jacobian)(0, 0) = radial + 2.0 * x * x * g + 2.0 * p1 * y + 6.0 * p2 * x;
-  (*jacobian)(0, 1) = 2.0 * x * y * g + 2.0 * p1 * x + 2.0 * p2 * y;
-  (*jacobian)(1, 0) = 2.0 * x * y * g + 2.0 * p1 * x + 2.0 * p2 * y;
-  (*jacobian)(1, 1) = radial + 2.0 * y * y * g + 6.0 * p1 * y + 2.0 * p2 * x;
-  return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-          y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
-}
-
-/// Solves Distort(x) = xd from the start value in *x. False without
-/// convergence or where the Jacobian is not positive (past a fold of the
-/// polynomial model, where it no longer describes a lens).
-bool Undistort(const std::array<double, 5>& k, const Vector2d& xd, Vector2d* x) {
-  const double target = kUndistortResidual * std::max(1.0, xd.norm());
-  Matrix2d jacobian;
-  Vector2d residual = Distort(k, *x, &jacobian) - xd;
-  double residual_norm = residual.norm();
-  for (int iter = 0; iter < kUndistortMaxIterations; ++iter) {
-    if (!(jacobian.determinant() > 0.0)) {
-      return false;
-    }
-    if (residual_norm <= target) {
-      return x->allFinite();
-    }
-    const Vector2d step = jacobian.inverse() * residual;
-    double t = 1.0;
-    for (;;) {
-      const Vector2d candidate = *x - t * step;
-      Matrix2d candidate_jacobian;
-      const Vector2d candidate_residual = Distort(k, candidate, &candidate_jacobian) - xd;
-      const double candidate_norm = candidate_residual.norm();
-      if (candidate_norm < residual_norm) {
-        *x = candidate;
-        jacobian = candidate_jacobian;
-        residual = candidate_residual;
-        residual_norm = candidate_norm;
-        break;
-      }
-      t *= 0.5;
-      if (t < 1e-6) {
-        return false;
-      }
-    }
-  }
-  return false;
-}
 
 /// Angle between the rays (a, 1) and (b, 1).
 double RayAngle(const Vector2d& a, const Vector2d& b) {
@@ -324,7 +265,7 @@ class CameraRays {
       for (int u = -1; u <= width_; ++u) {
         const Vector2d xd = normalised(u, v);
         Vector2d x = std::isfinite(guess.x()) ? guess : xd;
-        if (Undistort(camera.distortion, xd, &x)) {
+        if (geometry::InvertDistortion(camera.distortion, xd, &x)) {
           xs_[GridIndex(u, v)] = static_cast<float>(x.x());
           ys_[GridIndex(u, v)] = static_cast<float>(x.y());
           guess = x;
@@ -342,7 +283,7 @@ class CameraRays {
       for (int u = 0; u <= width_; ++u) {
         const Vector2d xd = normalised(u - 0.5, v - 0.5);
         Vector2d x = std::isfinite(guess.x()) ? guess : xd;
-        if (Undistort(camera.distortion, xd, &x)) {
+        if (geometry::InvertDistortion(camera.distortion, xd, &x)) {
           corners[static_cast<std::size_t>(v) * cw + u] = x;
           guess = x;
         } else {

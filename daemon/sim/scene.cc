@@ -18,6 +18,7 @@
 #include <Eigen/Geometry>
 
 #include "common/config_error.h"
+#include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 #include "geometry/mesh.h"
 
@@ -31,7 +32,7 @@ constexpr double kPi = 3.14159265358979323846;
 double Radians(double degrees) { return degrees * kPi / 180.0; }
 
 /// yaml-cpp marks are 0-based; messages use 1-based lines (0 = unknown, omitted).
-int LineOf(const YAML::Node& node) { return node.Mark().line + 1; }
+int LineOf(const YAML::Node& node) { return common::YamlLine(node); }
 
 std::string Join(const std::vector<std::string>& words) {
   std::string out;
@@ -663,15 +664,7 @@ Scene LoadScene(const std::string& path) {
 
 Scene ParseScene(const std::string& yaml_text, const std::string& file,
                  const std::string& base_dir) {
-  YAML::Node root;
-  try {
-    root = YAML::Load(yaml_text);
-  } catch (const YAML::ParserException& e) {
-    throw ConfigError::At(file, e.mark.line + 1, "malformed YAML: " + e.msg);
-  } catch (const YAML::Exception& e) {
-    throw ConfigError::At(file, e.mark.line + 1, "cannot read YAML: " + e.msg);
-  }
-  return SceneParser(file, base_dir).Parse(root);
+  return SceneParser(file, base_dir).Parse(common::ParseYaml(yaml_text, file));
 }
 
 }  // namespace hg::sim

@@ -9,6 +9,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include "common/config_error.h"
+#include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 #include "hullguard/commands.h"
 #include "silhouette/mask_io.h"
@@ -55,9 +56,7 @@ void WriteManifest(const fs::path& path, const sim::Scene& scene, const SynthFla
     out << YAML::Key << "time_offset_s" << YAML::Value << c.time_offset_s << YAML::EndMap;
   }
   out << YAML::EndSeq << YAML::EndMap;
-  std::ofstream file(path);
-  file << out.c_str() << "\n";
-  if (!file) throw common::ConfigError(path.string() + ": cannot write");
+  common::WriteYamlFile(path.string(), out);
 }
 
 int RunSynth(const SynthFlags& f) {

@@ -33,9 +33,6 @@ constexpr int kGjkMaxIterations = 96;
 constexpr double kBarycentricSlack = 1e-12;
 // Boundary samples per pixel edge when undistorting a pixel square.
 constexpr int kSamplesPerEdge = 16;
-// Newton undistortion: residual target and iteration cap.
-constexpr double kUndistortResidual = 1e-12;
-constexpr int kUndistortMaxIterations = 60;
 // Slack added to the polygon margin for the Newton residual: a residual of
 // 1e-12 in distorted coordinates moves the solution by 1e-12 * |J^-1|, far
 // below this for any lens whose Jacobian is not nearly singular.
@@ -201,58 +198,6 @@ bool CertifiedSeparated(const SetA& a, const SetB& b, double tol, Vector3d* hint
     // No progress: the simplex is numerically flat around a point next to the
     // origin, which happens when the sets touch or overlap.
     if (!(v.squaredNorm() < vv)) return false;
-  }
-  return false;
-}
-
-// Distortion of normalised coordinates, OpenCV k1 k2 p1 p2 k3, with its Jacobian.
-Vector2d Distort(const std::array<double, 5>& k, const Vector2d& xy, Matrix2d* jacobian) {
-  const double x = xy.x();
-  const double y = xy.y();
-  const double r2 = x * x + y * y;
-  const double radial = 1.0 + r2 * (k[0] + r2 * (k[1] + r2 * k[4]));
-  const double d_radial = k[0] + r2 * (2.0 * k[1] + 3.0 * r2 * k[4]);  // d radial / d r2
-  const double p1 = k[2];
-  const double p2 = k[3];
-  if (jacobian != nullptr) {
-    (*jacobian)(0, 0) = radial + 2.0 * x * x * d_radial + 2.0 * p1 * y + 6.0 * p2 * x;
-    (*jacobian)(0, 1) = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y;
-    (*jacobian)(1, 0) = 2.0 * x * y * d_radial + 2.0 * p1 * x + 2.0 * p2 * y;
-    (*jacobian)(1, 1) = radial + 2.0 * y * y * d_radial + 6.0 * p1 * y + 2.0 * p2 * x;
-  }
-  return {x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x),
-          y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y};
-}
-
-// Solves Distort(x) = xd by damped Newton from the value in *x. Fails (false)
-// without convergence or where the Jacobian is not positive, i.e. outside the
-// branch on which the lens model is a one-to-one map.
-bool Undistort(const std::array<double, 5>& k, const Vector2d& xd, Vector2d* x) {
-  const double target = kUndistortResidual * std::max(1.0, xd.norm());
-  Matrix2d jacobian;
-  Vector2d residual = Distort(k, *x, &jacobian) - xd;
-  double residual_norm = residual.norm();
-  for (int iter = 0; iter < kUndistortMaxIterations; ++iter) {
-    const double det = jacobian.determinant();
-    if (!(det > 0.0)) return false;
-    if (residual_norm <= target) return x->allFinite();
-    const Vector2d step = jacobian.inverse() * residual;
-    double t = 1.0;
-    for (;;) {
-      const Vector2d candidate = *x - t * step;
-      Matrix2d candidate_jacobian;
-      const Vector2d candidate_residual = Distort(k, candidate, &candidate_jacobian) - xd;
-      const double candidate_norm = candidate_residual.norm();
-      if (candidate_norm < residual_norm) {
-        *x = candidate;
-        jacobian = candidate_jacobian;
-        residual = candidate_residual;
-        residual_norm = candidate_norm;
-        break;
-      }
-      t *= 0.5;
-      if (t < 1e-6) return false;
-    }
   }
   return false;
 }
@@ -497,7 +442,7 @@ common::ImageU8 RenderExactDistortedMask(const geometry::CameraModel& camera,
         const Vector2d& to = corners[(edge + 1) % 4];
         for (int j = 0; j < kSamplesPerEdge && inverted; ++j) {
           const Vector2d uv = from + (to - from) * (static_cast<double>(j) / kSamplesPerEdge);
-          inverted = Undistort(k, Normalised(K_inv, uv.x(), uv.y()), &x);
+          inverted = geometry::InvertDistortion(k, Normalised(K_inv, uv.x(), uv.y()), &x);
           samples.push_back(x);
         }
       }
