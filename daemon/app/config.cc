@@ -1,0 +1,1085 @@
+#include "app/config.h"
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <set>
+#include <span>
+#include <sstream>
+#include <system_error>
+#include <type_traits>
+#include <utility>
+
+#include <yaml-cpp/yaml.h>
+
+#include "app/config_doc.h"
+#include "common/config_error.h"
+#include "common/yaml_file.h"
+#include "geometry/camera_yaml.h"
+
+namespace hg::app {
+namespace {
+
+namespace fs = std::filesystem;
+using common::ConfigError;
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// ---------------------------------------------------------------------------
+// Enum spellings.
+
+template <typename E>
+using NameTable = std::span<const std::pair<E, const char*>>;
+
+constexpr std::pair<SourceType, const char*> kSourceTypeNames[] = {{SourceType::kSim, "sim"},
+                                                                   {SourceType::kReplay, "replay"},
+                                                                   {SourceType::kAravis, "aravis"},
+                                                                   {SourceType::kV4l2, "v4l2"}};
+constexpr std::pair<PixelFormat, const char*> kPixelFormatNames[] = {
+    {PixelFormat::kMono8, "Mono8"},       {PixelFormat::kBayerRG8, "BayerRG8"},
+    {PixelFormat::kBayerGB8, "BayerGB8"}, {PixelFormat::kBayerGR8, "BayerGR8"},
+    {PixelFormat::kBayerBG8, "BayerBG8"}, {PixelFormat::kRGB8, "RGB8"}};
+constexpr std::pair<Trigger, const char*> kTriggerNames[] = {{Trigger::kFreeRun, "free_run"},
+                                                             {Trigger::kSoftware, "software"},
+                                                             {Trigger::kHardware, "hardware"}};
+constexpr std::pair<V4l2Format, const char*> kV4l2FormatNames[] = {
+    {V4l2Format::kGrey, "GREY"}, {V4l2Format::kYuyv, "YUYV"}, {V4l2Format::kMjpeg, "MJPEG"}};
+constexpr std::pair<LogLevel, const char*> kLogLevelNames[] = {{LogLevel::kTrace, "trace"},
+                                                               {LogLevel::kDebug, "debug"},
+                                                               {LogLevel::kInfo, "info"},
+                                                               {LogLevel::kWarn, "warn"},
+                                                               {LogLevel::kError, "error"}};
+
+NameTable<SourceType> Names(SourceType) { return kSourceTypeNames; }
+NameTable<PixelFormat> Names(PixelFormat) { return kPixelFormatNames; }
+NameTable<Trigger> Names(Trigger) { return kTriggerNames; }
+NameTable<V4l2Format> Names(V4l2Format) { return kV4l2FormatNames; }
+NameTable<LogLevel> Names(LogLevel) { return kLogLevelNames; }
+
+template <typename E>
+const char* NameOf(E value) {
+  for (const auto& [v, name] : Names(value)) {
+    if (v == value) return name;
+  }
+  return "?";
+}
+
+/// "a, b or c".
+std::string OrList(const std::vector<std::string>& words, const char* last = " or ") {
+  std::string out;
+  for (std::size_t i = 0; i < words.size(); ++i) {
+    if (i > 0) out += i + 1 == words.size() ? last : ", ";
+    out += words[i];
+  }
+  return out;
+}
+
+template <typename E>
+std::vector<std::string> NameList() {
+  std::vector<std::string> out;
+  for (const auto& [v, name] : Names(E{})) out.emplace_back(name);
+  return out;
+}
+
+std::string FormatNumber(double value) {
+  std::ostringstream out;
+  out << value;
+  return out.str();
+}
+
+// ---------------------------------------------------------------------------
+// Field tables: the one description of every scalar key. The loader reads
+// through them (type, range, required) and the reference prints them; defaults
+// are those of the structs' in-line initializers.
+
+/// Allowed numeric range; integers are checked against it too.
+struct Limits {
+  double lo = -kInf;
+  double hi = kInf;
+  bool lo_open = false;  ///< lo itself excluded ("> 0").
+};
+
+/// What a path-valued string must name once resolved against the config's folder.
+enum class PathCheck { kNone, kFile, kDirectory };
+
+template <typename S>
+using Member = std::variant<int S::*, double S::*, bool S::*, std::string S::*,
+                            std::optional<int> S::*, std::optional<double> S::*, common::Box3 S::*,
+                            PixelFormat S::*, Trigger S::*, V4l2Format S::*, LogLevel S::*>;
+
+template <typename S>
+struct Field {
+  const char* key;
+  Member<S> member;
+  const char* meaning;
+  Limits limits = {};
+  bool required = false;
+  PathCheck path = PathCheck::kNone;
+  const char* default_doc = nullptr;  ///< Printed instead of the struct's default.
+};
+
+const Field<CellConfig> kCellFields[] = {
+    {.key = "bounds",
+     .member = &CellConfig::bounds,
+     .meaning = "Surveillance volume in the world frame (m): `{min: [x, y, z], max: [x, y, z]}`, "
+                "max > min on every axis.",
+     .required = true},
+};
+
+const Field<OctreeSettings> kOctreeFields[] = {
+    {.key = "depth",
+     .member = &OctreeSettings::depth,
+     .meaning =
+         "Levels of the octree; the finest cells are bounds / 2^depth (3 = the 8x8x8 roots).",
+     .limits = {3, 16}},
+    {.key = "boundary_coarsening",
+     .member = &OctreeSettings::boundary_coarsening,
+     .meaning = "Boxes mixed only through static geometry (view edges, obstacle depth) stop this "
+                "many levels above depth, as occupied-when-seen leaves. 0 resolves them exactly.",
+     .limits = {0, 16}},
+    {.key = "knowledge_filter_m3",
+     .member = &OctreeSettings::knowledge_filter_m3,
+     .meaning = "Occupied components smaller than this volume (m^3) are dropped by the knowledge "
+                "filter; 0 turns the filter off (it frees space the cameras did not certify).",
+     .limits = {0, kInf}},
+};
+
+const Field<TimingConfig> kTimingFields[] = {
+    {.key = "rate_hz",
+     .member = &TimingConfig::rate_hz,
+     .meaning = "Fusion rate: octree updates per second.",
+     .limits = {1, 1000}},
+    {.key = "deadline_ms",
+     .member = &TimingConfig::deadline_ms,
+     .meaning = "Anytime deadline of one octree update; must be < 1000 / rate_hz. Branches not "
+                "updated in time are reported not free.",
+     .limits = {0, kInf, true}},
+    {.key = "camera_timeout_ms",
+     .member = &TimingConfig::camera_timeout_ms,
+     .meaning = "A camera without a frame for this long counts as seeing nothing.",
+     .limits = {1, kInf}},
+};
+
+const Field<ThreadsConfig> kThreadsFields[] = {
+    {.key = "octree",
+     .member = &ThreadsConfig::octree,
+     .meaning = "Threads of the octree update (the fusion thread included).",
+     .limits = {1, 64}},
+    {.key = "silhouette_workers",
+     .member = &ThreadsConfig::silhouette_workers,
+     .meaning = "Silhouette worker threads; 0 = one per camera.",
+     .limits = {0, 64}},
+};
+
+/// The camera block, read by geometry::ParseCamera; listed here for the split
+/// of a camera entry and for the reference.
+struct CameraBlockKey {
+  const char* key;
+  const char* type;
+  const char* default_value;
+  const char* meaning;
+};
+const CameraBlockKey kCameraBlockKeys[] = {
+    {"name", "string", "required", "Unique camera name."},
+    {"width", "integer", "required", "Image width (pixels), 1 .. 65535."},
+    {"height", "integer", "required", "Image height (pixels), 1 .. 65535."},
+    {"K", "9 numbers", "required (unless P)", "Intrinsics, row-major, last row 0 0 1."},
+    {"distortion", "5 numbers", "0 0 0 0 0", "OpenCV k1 k2 p1 p2 k3."},
+    {"R", "9 numbers", "-", "World-to-camera rotation, row-major; with t."},
+    {"t", "3 numbers", "-", "World-to-camera translation (m); with R."},
+    {"position", "3 numbers", "-", "Camera centre in the world (m); with look_at instead of R, t."},
+    {"look_at", "3 numbers", "-", "A world point on the optical axis (m); with position."},
+    {"up", "3 numbers", "+z", "World direction shown upwards in the image; with position."},
+    {"P", "12 numbers", "-", "3x4 projection, row-major, any scale; instead of K, R, t."},
+};
+
+const Field<CameraConfig> kCameraFields[] = {
+    {.key = "timeout_ms",
+     .member = &CameraConfig::timeout_ms,
+     .meaning = "Overrides timing.camera_timeout_ms for this camera.",
+     .limits = {1, kInf},
+     .default_doc = "timing.camera_timeout_ms"},
+};
+
+const Field<SimSourceConfig> kSimFields[] = {
+    {.key = "scene",
+     .member = &SimSourceConfig::scene,
+     .meaning = "Scene file (docs/scenes.md), relative to the config file; must define the camera.",
+     .required = true,
+     .path = PathCheck::kFile},
+    {.key = "camera",
+     .member = &SimSourceConfig::camera,
+     .meaning = "Camera of the scene whose frames are rendered.",
+     .default_doc = "the camera's name"},
+};
+
+const Field<ReplaySourceConfig> kReplayFields[] = {
+    {.key = "directory",
+     .member = &ReplaySourceConfig::directory,
+     .meaning = "Recording folder, relative to the config file.",
+     .required = true,
+     .path = PathCheck::kDirectory},
+    {.key = "camera",
+     .member = &ReplaySourceConfig::camera,
+     .meaning = "Camera of the recording whose frames are played.",
+     .default_doc = "the camera's name"},
+    {.key = "realtime",
+     .member = &ReplaySourceConfig::realtime,
+     .meaning = "Pace frames by their timestamps; false plays them as fast as they are consumed."},
+};
+
+const Field<AravisSourceConfig> kAravisFields[] = {
+    {.key = "device",
+     .member = &AravisSourceConfig::device,
+     .meaning = "Serial number, device name or IP address of the camera.",
+     .required = true},
+    {.key = "pixel_format",
+     .member = &AravisSourceConfig::pixel_format,
+     .meaning = "Pixel format requested from the camera."},
+    {.key = "exposure_us",
+     .member = &AravisSourceConfig::exposure_us,
+     .meaning = "Exposure time (us); unset keeps the camera's setting.",
+     .limits = {0, 10'000'000, true},
+     .default_doc = "camera's"},
+    {.key = "gain_db",
+     .member = &AravisSourceConfig::gain_db,
+     .meaning = "Analog gain (dB); unset keeps the camera's setting.",
+     .limits = {0, 60},
+     .default_doc = "camera's"},
+    {.key = "frame_rate_hz",
+     .member = &AravisSourceConfig::frame_rate_hz,
+     .meaning = "Acquisition frame rate; unset keeps the camera's setting.",
+     .limits = {0, 1000, true},
+     .default_doc = "camera's"},
+    {.key = "trigger",
+     .member = &AravisSourceConfig::trigger,
+     .meaning = "Acquisition trigger: free running, software or hardware (line) trigger."},
+    {.key = "packet_size",
+     .member = &AravisSourceConfig::packet_size,
+     .meaning = "GigE Vision stream packet size (bytes); unset negotiates it.",
+     .limits = {576, 16384},
+     .default_doc = "negotiated"},
+    {.key = "socket_buffer_bytes",
+     .member = &AravisSourceConfig::socket_buffer_bytes,
+     .meaning = "Receive socket buffer of the stream (bytes); unset keeps the system default.",
+     .limits = {4096, 1 << 30},
+     .default_doc = "system's"},
+};
+
+const Field<V4l2SourceConfig> kV4l2Fields[] = {
+    {.key = "device",
+     .member = &V4l2SourceConfig::device,
+     .meaning = "Device node, /dev/videoN.",
+     .required = true},
+    {.key = "format",
+     .member = &V4l2SourceConfig::format,
+     .meaning = "Capture format requested from the driver."},
+    {.key = "frame_rate_hz",
+     .member = &V4l2SourceConfig::frame_rate_hz,
+     .meaning = "Frame rate; unset keeps the driver's setting.",
+     .limits = {0, 1000, true},
+     .default_doc = "driver's"},
+    {.key = "exposure",
+     .member = &V4l2SourceConfig::exposure,
+     .meaning = "exposure_time_absolute (units of 100 us); unset keeps auto exposure.",
+     .limits = {1, 100'000},
+     .default_doc = "auto"},
+};
+
+const Field<BackgroundConfig> kBackgroundFields[] = {
+    {.key = "learn_frames",
+     .member = &BackgroundConfig::learn_frames,
+     .meaning = "Frames averaged into the background model before the first mask.",
+     .limits = {1, 10'000}},
+    {.key = "threshold",
+     .member = &BackgroundConfig::threshold,
+     .meaning = "A pixel differing from the model by more than this (grey levels) is foreground.",
+     .limits = {1, 255}},
+    {.key = "adapt_rate",
+     .member = &BackgroundConfig::adapt_rate,
+     .meaning = "Per-frame weight with which background pixels update the model; 0 freezes it.",
+     .limits = {0, 1}},
+    {.key = "shadows_are_foreground",
+     .member = &BackgroundConfig::shadows_are_foreground,
+     .meaning = "Count shadows as foreground (conservative: a shadow may hide a person's edge)."},
+};
+
+const Field<ObstacleConfig> kObstacleFields[] = {
+    {.key = "file",
+     .member = &ObstacleConfig::file,
+     .meaning = "Static obstacle mesh (.obj or .stl, world frame, m), relative to the config file.",
+     .required = true,
+     .path = PathCheck::kFile},
+};
+
+const Field<DdsConfig> kDdsFields[] = {
+    {.key = "domain_id",
+     .member = &DdsConfig::domain_id,
+     .meaning = "DDS domain.",
+     .limits = {0, 232}},
+    {.key = "topic_prefix",
+     .member = &DdsConfig::topic_prefix,
+     .meaning = "Prefix of every topic name (`<prefix>/occupancy`, ...)."},
+    {.key = "enabled",
+     .member = &DdsConfig::enabled,
+     .meaning = "Publish on DDS; false runs with the null publisher."},
+};
+
+const Field<LoggingConfig> kLoggingFields[] = {
+    {.key = "level", .member = &LoggingConfig::level, .meaning = "Least severe level logged."},
+    {.key = "journald",
+     .member = &LoggingConfig::journald,
+     .meaning = "Log to the systemd journal instead of stderr."},
+};
+
+/// Top-level keys.
+struct Section {
+  const char* key;
+  const char* type;
+  bool required;
+  const char* meaning;
+};
+const Section kSections[] = {
+    {"cell", "map", true, "The surveillance volume."},
+    {"octree", "map", false, "Octree resolution and filtering."},
+    {"timing", "map", false, "Fusion rate, deadline and camera timeout."},
+    {"threads", "map", false, "Thread counts."},
+    {"cameras", "list", true, "The cameras: calibration and source of each."},
+    {"background", "map", false, "Background model of the silhouette stage."},
+    {"obstacles", "list", false, "Static obstacle meshes."},
+    {"dds", "map", false, "DDS publishing."},
+    {"logging", "map", false, "Log level and destination."},
+};
+
+template <typename S>
+std::vector<std::string> KeysOf(std::span<const Field<S>> fields) {
+  std::vector<std::string> keys;
+  for (const Field<S>& f : fields) keys.emplace_back(f.key);
+  return keys;
+}
+
+// ---------------------------------------------------------------------------
+// The reader.
+
+/// One value of the file with its key path and the line reported for it (the
+/// key's line for a map entry, the element's line for a list element).
+struct Item {
+  YAML::Node key;  ///< The key node for a map entry; undefined for a list element.
+  YAML::Node value;
+  std::string path;
+  int line = 0;
+};
+
+using Entries = std::map<std::string, Item>;
+
+std::string Join(const std::string& prefix, const std::string& key) {
+  return prefix.empty() ? key : prefix + "." + key;
+}
+
+/// Reads a config tree, recording every problem instead of stopping at the first.
+/// Single-thread.
+class Reader {
+ public:
+  Reader(std::string file, fs::path base_dir)
+      : file_(std::move(file)), base_dir_(std::move(base_dir)) {}
+
+  [[nodiscard]] const std::string& file() const { return file_; }
+  [[nodiscard]] std::size_t error_count() const { return errors_.size(); }
+
+  void Error(int line, const std::string& path, const std::string& problem) {
+    errors_.emplace_back(
+        line, ConfigError::At(file_, line, path.empty() ? problem : path + ": " + problem).what());
+  }
+
+  /// Throws one ConfigError listing every recorded problem, ordered by line.
+  void ThrowIfErrors() {
+    if (errors_.empty()) return;
+    std::stable_sort(errors_.begin(), errors_.end(),
+                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::string message;
+    for (const auto& [line, text] : errors_) {
+      message += (message.empty() ? "" : "\n") + text;
+    }
+    throw ConfigError(message);
+  }
+
+  /// The entries of a map; records a non-map, non-string keys, duplicates and
+  /// keys outside `known`. An absent (undefined) node gives no entries.
+  Entries Map(const Item& item, const std::vector<std::string>& known) {
+    Entries out;
+    if (!item.value.IsDefined()) return out;
+    if (!item.value.IsMap()) {
+      Error(item.line, item.path, "expected a map");
+      return out;
+    }
+    for (const auto& kv : item.value) {
+      const int line = common::YamlLine(kv.first);
+      if (!kv.first.IsScalar()) {
+        Error(line, item.path, "keys must be strings");
+        continue;
+      }
+      const std::string& key = kv.first.Scalar();
+      const std::string path = Join(item.path, key);
+      if (std::find(known.begin(), known.end(), key) == known.end()) {
+        Error(line, item.path,
+              "unknown key '" + key + "'" +
+                  (known.empty() ? "" : " (expected " + OrList(known) + ")"));
+        continue;
+      }
+      const auto [it, inserted] = out.emplace(key, Item{kv.first, kv.second, path, line});
+      if (!inserted) {
+        Error(line, path, "duplicate key (first at line " + std::to_string(it->second.line) + ")");
+      }
+    }
+    return out;
+  }
+
+  /// The elements of a list; records a non-list.
+  std::vector<Item> List(const Item& item) {
+    std::vector<Item> out;
+    if (!item.value.IsSequence()) {
+      Error(item.line, item.path, "expected a list");
+      return out;
+    }
+    for (std::size_t i = 0; i < item.value.size(); ++i) {
+      const YAML::Node element = item.value[i];
+      const int line = common::YamlLine(element);
+      out.push_back(Item{YAML::Node(), element, item.path + "[" + std::to_string(i) + "]",
+                         line >= 1 ? line : item.line});
+    }
+    return out;
+  }
+
+  /// Reads the fields present in `entries` into `out` and records missing
+  /// required ones (`parent` is the map holding them).
+  template <typename S>
+  void Fields(std::span<const Field<S>> fields, const Entries& entries, const Item& parent,
+              S* out) {
+    for (const Field<S>& f : fields) {
+      const auto it = entries.find(f.key);
+      if (it == entries.end()) {
+        if (f.required) Error(parent.line, parent.path, std::string("missing key '") + f.key + "'");
+        continue;
+      }
+      ReadField(f, it->second, out);
+    }
+  }
+
+  std::optional<double> Number(const Item& item, const Limits& limits) {
+    double value = 0.0;
+    bool ok = item.value.IsScalar();
+    if (ok) {
+      try {
+        value = item.value.as<double>();
+      } catch (const YAML::Exception&) {
+        ok = false;
+      }
+    }
+    if (!ok || !std::isfinite(value)) {
+      Error(item.line, item.path, "expected a number" + Got(item));
+      return std::nullopt;
+    }
+    return CheckRange(item, value, limits) ? std::optional<double>(value) : std::nullopt;
+  }
+
+  std::optional<int> Integer(const Item& item, const Limits& limits) {
+    long long value = 0;
+    bool ok = item.value.IsScalar();
+    if (ok) {
+      const std::string& text = item.value.Scalar();
+      const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+      ok = !text.empty() && ec == std::errc() && end == text.data() + text.size() &&
+           value >= std::numeric_limits<int>::min() && value <= std::numeric_limits<int>::max();
+    }
+    if (!ok) {
+      Error(item.line, item.path, "expected an integer" + Got(item));
+      return std::nullopt;
+    }
+    return CheckRange(item, static_cast<double>(value), limits)
+               ? std::optional<int>(static_cast<int>(value))
+               : std::nullopt;
+  }
+
+  std::optional<bool> Bool(const Item& item) {
+    bool value = false;
+    bool ok = item.value.IsScalar();
+    if (ok) {
+      try {
+        value = item.value.as<bool>();
+      } catch (const YAML::Exception&) {
+        ok = false;
+      }
+    }
+    if (!ok) {
+      Error(item.line, item.path, "expected true or false" + Got(item));
+      return std::nullopt;
+    }
+    return value;
+  }
+
+  std::optional<std::string> String(const Item& item) {
+    if (!item.value.IsScalar() || item.value.Scalar().empty()) {
+      Error(item.line, item.path, "expected a non-empty string");
+      return std::nullopt;
+    }
+    return item.value.Scalar();
+  }
+
+  template <typename E>
+  std::optional<E> Enum(const Item& item, const std::string& noun) {
+    const std::optional<std::string> text = String(item);
+    if (!text) return std::nullopt;
+    for (const auto& [v, name] : Names(E{})) {
+      if (*text == name) return v;
+    }
+    Error(item.line, item.path,
+          "unknown " + noun + " '" + *text + "' (expected " + OrList(NameList<E>()) + ")");
+    return std::nullopt;
+  }
+
+  /// A path relative to the config's folder, resolved; records a missing file or folder.
+  std::optional<std::string> Path(const Item& item, PathCheck check) {
+    const std::optional<std::string> text = String(item);
+    if (!text) return std::nullopt;
+    const fs::path resolved = (base_dir_ / *text).lexically_normal();
+    std::error_code ec;
+    if (check == PathCheck::kFile && !fs::is_regular_file(resolved, ec)) {
+      Error(item.line, item.path, "no such file '" + resolved.string() + "'");
+      return std::nullopt;
+    }
+    if (check == PathCheck::kDirectory && !fs::is_directory(resolved, ec)) {
+      Error(item.line, item.path, "no such directory '" + resolved.string() + "'");
+      return std::nullopt;
+    }
+    return resolved.string();
+  }
+
+  std::optional<Eigen::Vector3d> Vector3(const Item& item) {
+    if (!item.value.IsSequence() || item.value.size() != 3) {
+      Error(item.line, item.path, "expected a list of 3 numbers");
+      return std::nullopt;
+    }
+    Eigen::Vector3d v;
+    bool ok = true;
+    const std::vector<Item> elements = List(item);
+    for (int i = 0; i < 3; ++i) {
+      const std::optional<double> x = Number(elements[i], {});
+      ok = ok && x.has_value();
+      if (x) v[i] = *x;
+    }
+    return ok ? std::optional<Eigen::Vector3d>(v) : std::nullopt;
+  }
+
+  std::optional<common::Box3> Box(const Item& item) {
+    const Entries e = Map(item, {"min", "max"});
+    if (!item.value.IsMap()) return std::nullopt;
+    common::Box3 box;
+    bool ok = true;
+    for (const char* key : {"min", "max"}) {
+      const auto it = e.find(key);
+      if (it == e.end()) {
+        Error(item.line, item.path, std::string("missing key '") + key + "'");
+        ok = false;
+        continue;
+      }
+      const std::optional<Eigen::Vector3d> v = Vector3(it->second);
+      if (!v) {
+        ok = false;
+      } else {
+        (std::string(key) == "min" ? box.min : box.max) = *v;
+      }
+    }
+    if (!ok) return std::nullopt;
+    if (!box.IsValid()) {
+      Error(e.at("max").line, e.at("max").path, "must exceed min on every axis");
+      return std::nullopt;
+    }
+    return box;
+  }
+
+ private:
+  template <typename S>
+  void ReadField(const Field<S>& f, const Item& item, S* out) {
+    std::visit(
+        [&](auto member) {
+          if (member == nullptr) return;  // Never; keeps GCC's flow analysis quiet.
+          auto& dst = out->*member;
+          using T = std::remove_reference_t<decltype(dst)>;
+          if constexpr (sizeof(T) > sizeof(S)) {
+            // No S has such a member; not instantiating the read keeps GCC from
+            // warning about a write past the end of S.
+          } else if constexpr (std::is_same_v<T, int>) {
+            if (const auto v = Integer(item, f.limits)) dst = *v;
+          } else if constexpr (std::is_same_v<T, double>) {
+            if (const auto v = Number(item, f.limits)) dst = *v;
+          } else if constexpr (std::is_same_v<T, std::optional<int>>) {
+            if (const auto v = Integer(item, f.limits)) dst = *v;
+          } else if constexpr (std::is_same_v<T, std::optional<double>>) {
+            if (const auto v = Number(item, f.limits)) dst = *v;
+          } else if constexpr (std::is_same_v<T, bool>) {
+            if (const auto v = Bool(item)) dst = *v;
+          } else if constexpr (std::is_same_v<T, std::string>) {
+            const auto v = f.path == PathCheck::kNone ? String(item) : Path(item, f.path);
+            if (v) dst = *v;
+          } else if constexpr (std::is_same_v<T, common::Box3>) {
+            if (const auto v = Box(item)) dst = *v;
+          } else {
+            if (const auto v = Enum<T>(item, "value")) dst = *v;
+          }
+        },
+        f.member);
+  }
+
+  bool CheckRange(const Item& item, double value, const Limits& limits) {
+    const bool low_ok = limits.lo_open ? value > limits.lo : value >= limits.lo;
+    if (low_ok && value <= limits.hi) return true;
+    const bool two_sided = std::isfinite(limits.lo) && std::isfinite(limits.hi) && !limits.lo_open;
+    Error(item.line, item.path,
+          std::string(two_sided ? "must be in " : "must be ") + RangeText(limits) + Got(item));
+    return false;
+  }
+
+  static std::string Got(const Item& item) {
+    return item.value.IsScalar() ? " (got '" + item.value.Scalar() + "')" : "";
+  }
+
+ public:
+  /// "3 .. 16", ">= 0", "> 0".
+  static std::string RangeText(const Limits& limits) {
+    const bool has_lo = std::isfinite(limits.lo);
+    const bool has_hi = std::isfinite(limits.hi);
+    if (has_lo && has_hi && !limits.lo_open) {
+      return FormatNumber(limits.lo) + " .. " + FormatNumber(limits.hi);
+    }
+    std::string out;
+    if (has_lo) out = (limits.lo_open ? "> " : ">= ") + FormatNumber(limits.lo);
+    if (has_hi) out += (out.empty() ? "<= " : ", <= ") + FormatNumber(limits.hi);
+    return out;
+  }
+
+ private:
+  std::string file_;
+  fs::path base_dir_;
+  std::vector<std::pair<int, std::string>> errors_;
+};
+
+// ---------------------------------------------------------------------------
+// Sections.
+
+template <typename S>
+void ReadSection(Reader& r, const Entries& root, const char* key, std::span<const Field<S>> fields,
+                 S* out) {
+  const auto it = root.find(key);
+  if (it == root.end()) return;
+  const Entries e = r.Map(it->second, KeysOf(fields));
+  r.Fields(fields, e, it->second, out);
+}
+
+/// Names of the cameras a scene file defines; nullopt (and an error) when it cannot be read.
+std::optional<std::vector<std::string>> SceneCameras(Reader& r, const Item& scene_item,
+                                                     const std::string& scene_path) {
+  YAML::Node root;
+  try {
+    root = common::LoadYamlFile(scene_path);
+  } catch (const ConfigError& e) {
+    r.Error(scene_item.line, scene_item.path, std::string("cannot read the scene: ") + e.what());
+    return std::nullopt;
+  }
+  std::vector<std::string> names;
+  if (root.IsMap() && root["cameras"].IsSequence()) {
+    for (const YAML::Node& c : root["cameras"]) {
+      if (c.IsMap() && c["name"].IsScalar()) names.push_back(c["name"].Scalar());
+    }
+  }
+  return names;
+}
+
+/// Rewrites an error of geometry::ParseCamera ("file:line: key: problem", about
+/// a stand-alone camera block) into the entry's path ("cameras[2].K: problem").
+void RecordCameraError(Reader& r, const std::string& message, const Item& entry) {
+  std::string body = message;
+  int line = entry.line;
+  const std::string head = r.file() + ":";
+  if (body.rfind(head, 0) == 0) {
+    body = body.substr(head.size());
+    std::size_t digits = 0;
+    while (digits < body.size() && std::isdigit(static_cast<unsigned char>(body[digits]))) {
+      ++digits;
+    }
+    if (digits > 0) {
+      line = std::stoi(body.substr(0, digits));
+      body = body.substr(digits);
+    }
+    if (body.rfind(": ", 0) == 0) {
+      body = body.substr(2);
+    } else if (body.rfind(' ', 0) == 0) {  // "file: problem": no line.
+      body = body.substr(1);
+    }
+  }
+  // A leading "key: " or "key[i]: " names a camera-block key.
+  const std::size_t colon = body.find(": ");
+  if (colon != std::string::npos) {
+    const std::string key = body.substr(0, colon);
+    const std::string base = key.substr(0, key.find('['));
+    for (const CameraBlockKey& k : kCameraBlockKeys) {
+      if (base == k.key) {
+        r.Error(line, entry.path + "." + key, body.substr(colon + 2));
+        return;
+      }
+    }
+  }
+  r.Error(line, entry.path, body);
+}
+
+/// Reads the keys of one source type; `entries` receives the source's entries.
+template <typename S>
+S ReadSource(Reader& r, const Item& source, std::span<const Field<S>> fields, Entries* entries) {
+  std::vector<std::string> known = {"type"};
+  for (const std::string& k : KeysOf(fields)) known.push_back(k);
+  *entries = r.Map(source, known);
+  S out;
+  r.Fields(fields, *entries, source, &out);
+  return out;
+}
+
+/// Reads one `cameras:` entry; `name_item` receives the item of its `name` key.
+std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, Item* name_item) {
+  std::vector<std::string> known;
+  for (const CameraBlockKey& k : kCameraBlockKeys) known.emplace_back(k.key);
+  known.emplace_back("source");
+  for (const std::string& k : KeysOf<CameraConfig>(kCameraFields)) known.push_back(k);
+  if (!entry.value.IsMap()) {
+    r.Error(entry.line, entry.path, "expected a map with the camera keys and 'source'");
+    return std::nullopt;
+  }
+  const Entries e = r.Map(entry, known);
+
+  // The camera block goes to geometry::ParseCamera with its original key and
+  // value nodes, so its messages keep their lines.
+  YAML::Node block(YAML::NodeType::Map);
+  for (const auto& [key, item] : e) {
+    for (const CameraBlockKey& k : kCameraBlockKeys) {
+      if (key == k.key) block.force_insert(item.key, item.value);
+    }
+  }
+  CameraConfig camera;
+  bool ok = true;
+  try {
+    camera.model = geometry::ParseCamera(block, r.file());
+  } catch (const ConfigError& error) {
+    RecordCameraError(r, error.what(), entry);
+    ok = false;
+  }
+  if (const auto it = e.find("name"); it != e.end()) *name_item = it->second;
+  r.Fields<CameraConfig>(kCameraFields, e, entry, &camera);
+
+  const auto src = e.find("source");
+  if (src == e.end()) {
+    r.Error(entry.line, entry.path, "missing key 'source'");
+    return std::nullopt;
+  }
+  const Item& source = src->second;
+  if (!source.value.IsMap()) {
+    r.Error(source.line, source.path, "expected a map with 'type' and its keys");
+    return std::nullopt;
+  }
+  // The type decides which keys are known, so it is looked up first.
+  std::optional<Item> type_item;
+  for (const auto& kv : source.value) {
+    if (kv.first.IsScalar() && kv.first.Scalar() == "type") {
+      type_item = Item{kv.first, kv.second, source.path + ".type", common::YamlLine(kv.first)};
+    }
+  }
+  if (!type_item) {
+    r.Error(source.line, source.path,
+            "missing key 'type' (" + OrList(NameList<SourceType>()) + ")");
+    return std::nullopt;
+  }
+  const std::optional<SourceType> type = r.Enum<SourceType>(*type_item, "source type");
+  if (!type) return std::nullopt;
+  switch (*type) {
+    case SourceType::kSim: {
+      Entries e_src;
+      SimSourceConfig sim = ReadSource<SimSourceConfig>(r, source, kSimFields, &e_src);
+      if (sim.camera.empty()) sim.camera = camera.model.name;
+      const auto scene_it = e_src.find("scene");
+      if (!sim.scene.empty() && !sim.camera.empty() && scene_it != e_src.end()) {
+        if (const auto names = SceneCameras(r, scene_it->second, sim.scene)) {
+          if (std::find(names->begin(), names->end(), sim.camera) == names->end()) {
+            const auto cam_it = e_src.find("camera");
+            const Item& at = cam_it != e_src.end()
+                                 ? cam_it->second
+                                 : Item{{}, {}, source.path + ".camera", source.line};
+            r.Error(at.line, at.path,
+                    "scene '" + scene_it->second.value.Scalar() + "' has no camera '" + sim.camera +
+                        "' (it has " + OrList(*names, " and ") + ")");
+          }
+        }
+      }
+      camera.source = sim;
+      break;
+    }
+    case SourceType::kReplay: {
+      Entries e_src;
+      ReplaySourceConfig replay = ReadSource<ReplaySourceConfig>(r, source, kReplayFields, &e_src);
+      if (replay.camera.empty()) replay.camera = camera.model.name;
+      camera.source = replay;
+      break;
+    }
+    case SourceType::kAravis: {
+      Entries e_src;
+      camera.source = ReadSource<AravisSourceConfig>(r, source, kAravisFields, &e_src);
+      break;
+    }
+    case SourceType::kV4l2: {
+      Entries e_src;
+      V4l2SourceConfig v4l2 = ReadSource<V4l2SourceConfig>(r, source, kV4l2Fields, &e_src);
+      if (!v4l2.device.empty() && v4l2.device.rfind("/dev/", 0) != 0) {
+        r.Error(e_src.at("device").line, e_src.at("device").path,
+                "expected a device node such as /dev/video0");
+      }
+      camera.source = v4l2;
+      break;
+    }
+  }
+  return ok ? std::optional<CameraConfig>(camera) : std::nullopt;
+}
+
+/// Doc rows of a field table, defaults read from a default-constructed struct.
+template <typename S>
+std::vector<DocRow> Rows(std::span<const Field<S>> fields) {
+  static const S defaults{};
+  std::vector<DocRow> rows;
+  for (const Field<S>& f : fields) {
+    DocRow row;
+    row.key = f.key;
+    row.meaning = f.meaning;
+    row.allowed = Reader::RangeText(f.limits);
+    std::visit(
+        [&](auto member) {
+          if (member == nullptr) return;  // Never; keeps GCC's flow analysis quiet.
+          const auto& value = defaults.*member;
+          using T = std::remove_cvref_t<decltype(value)>;
+          if constexpr (std::is_same_v<T, int> || std::is_same_v<T, std::optional<int>>) {
+            row.type = "integer";
+          } else if constexpr (std::is_same_v<T, double> ||
+                               std::is_same_v<T, std::optional<double>>) {
+            row.type = "number";
+          } else if constexpr (std::is_same_v<T, bool>) {
+            row.type = "bool";
+          } else if constexpr (std::is_same_v<T, std::string>) {
+            row.type = f.path == PathCheck::kNone ? "string" : "path";
+          } else if constexpr (std::is_same_v<T, common::Box3>) {
+            row.type = "box";
+          } else {
+            row.type = "enum";
+            row.allowed = OrList(NameList<T>());
+          }
+          if constexpr (std::is_same_v<T, int> || std::is_same_v<T, double>) {
+            row.default_value = FormatNumber(value);
+          } else if constexpr (std::is_same_v<T, bool>) {
+            row.default_value = value ? "true" : "false";
+          } else if constexpr (std::is_same_v<T, std::string>) {
+            row.default_value = value;
+          } else if constexpr (std::is_enum_v<T>) {
+            row.default_value = NameOf(value);
+          }
+        },
+        f.member);
+    if (f.default_doc != nullptr) row.default_value = f.default_doc;
+    if (f.required) row.default_value = "required";
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
+}  // namespace
+
+const char* ToString(SourceType v) { return NameOf(v); }
+const char* ToString(PixelFormat v) { return NameOf(v); }
+const char* ToString(Trigger v) { return NameOf(v); }
+const char* ToString(V4l2Format v) { return NameOf(v); }
+const char* ToString(LogLevel v) { return NameOf(v); }
+
+SourceType TypeOf(const SourceConfig& source) { return static_cast<SourceType>(source.index()); }
+
+Config ParseConfig(const std::string& text, const std::string& file, const std::string& base_dir) {
+  const YAML::Node root = common::ParseYaml(text, file);
+  Reader r(file, base_dir.empty() ? fs::path(".") : fs::path(base_dir));
+  Config config;
+  config.source_file = file;
+  if (!root.IsMap()) {
+    r.Error(root.IsDefined() ? common::YamlLine(root) : 0, "",
+            "expected a map with the config sections (cell, cameras, ...)");
+    r.ThrowIfErrors();
+  }
+  std::vector<std::string> known;
+  for (const Section& s : kSections) known.emplace_back(s.key);
+  const Item root_item{YAML::Node(), root, "", common::YamlLine(root)};
+  const Entries sections = r.Map(root_item, known);
+  for (const Section& s : kSections) {
+    if (s.required && sections.count(s.key) == 0) {
+      r.Error(0, "", std::string("missing section '") + s.key + "'");
+    }
+  }
+
+  ReadSection<CellConfig>(r, sections, "cell", kCellFields, &config.cell);
+  ReadSection<OctreeSettings>(r, sections, "octree", kOctreeFields, &config.octree);
+  const std::size_t errors_before_timing = r.error_count();
+  ReadSection<TimingConfig>(r, sections, "timing", kTimingFields, &config.timing);
+  const bool timing_read = r.error_count() == errors_before_timing;
+  ReadSection<ThreadsConfig>(r, sections, "threads", kThreadsFields, &config.threads);
+  ReadSection<BackgroundConfig>(r, sections, "background", kBackgroundFields, &config.background);
+  ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);
+  ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
+
+  // Cross-field: the deadline must leave room within one period (checked on
+  // values that were read, not on a default standing in for a bad one).
+  const TimingConfig& timing = config.timing;
+  if (timing_read && timing.deadline_ms >= 1000.0 / timing.rate_hz) {
+    Entries t;
+    if (const auto it = sections.find("timing"); it != sections.end() && it->second.value.IsMap()) {
+      for (const auto& kv : it->second.value) {
+        const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : "";
+        t.emplace(key, Item{kv.first, kv.second, "timing." + key, common::YamlLine(kv.first)});
+      }
+    }
+    const int line = t.count("deadline_ms") ? t.at("deadline_ms").line
+                     : t.count("rate_hz")   ? t.at("rate_hz").line
+                                            : 0;
+    r.Error(line, "timing.deadline_ms",
+            "must be < 1000 / rate_hz = " + FormatNumber(1000.0 / timing.rate_hz) + " ms (got " +
+                FormatNumber(timing.deadline_ms) + ")");
+  }
+
+  if (const auto it = sections.find("cameras"); it != sections.end()) {
+    const Item& list = it->second;
+    if (!list.value.IsSequence() || list.value.size() == 0) {
+      r.Error(list.line, list.path, "expected a non-empty list of cameras");
+    } else {
+      std::map<std::string, int> first_line;  // Camera name -> line of its name.
+      for (const Item& entry : r.List(list)) {
+        Item name_item;
+        std::optional<CameraConfig> camera = ReadCamera(r, entry, &name_item);
+        // Checked on the raw name, so that a duplicate is reported even when
+        // the camera block has other problems.
+        if (name_item.value.IsScalar() && !name_item.value.Scalar().empty()) {
+          const std::string& name = name_item.value.Scalar();
+          const auto [at, inserted] = first_line.emplace(name, name_item.line);
+          if (!inserted) {
+            r.Error(name_item.line, name_item.path,
+                    "duplicate camera name '" + name + "' (first at line " +
+                        std::to_string(at->second) + ")");
+          }
+        }
+        if (!camera) continue;
+        if (camera->timeout_ms == 0) camera->timeout_ms = timing.camera_timeout_ms;
+        config.cameras.push_back(std::move(*camera));
+      }
+    }
+  }
+
+  if (const auto it = sections.find("obstacles"); it != sections.end()) {
+    for (const Item& entry : r.List(it->second)) {
+      const Entries e = r.Map(entry, KeysOf<ObstacleConfig>(kObstacleFields));
+      if (!entry.value.IsMap()) continue;
+      ObstacleConfig obstacle;
+      r.Fields<ObstacleConfig>(kObstacleFields, e, entry, &obstacle);
+      if (obstacle.file.empty()) continue;
+      std::string ext = fs::path(obstacle.file).extension().string();
+      std::transform(ext.begin(), ext.end(), ext.begin(),
+                     [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      if (ext != ".obj" && ext != ".stl") {
+        r.Error(e.at("file").line, e.at("file").path, "expected an .obj or .stl mesh");
+        continue;
+      }
+      config.obstacles.push_back(std::move(obstacle));
+    }
+  }
+
+  r.ThrowIfErrors();
+  return config;
+}
+
+Config LoadConfig(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw ConfigError::At(path, 0, "cannot open");
+  std::ostringstream text;
+  text << in.rdbuf();
+  if (in.bad()) throw ConfigError::At(path, 0, "read error");
+  return ParseConfig(text.str(), path, fs::path(path).parent_path().string());
+}
+
+std::string Summary(const Config& config) {
+  std::map<SourceType, int> counts;
+  for (const CameraConfig& c : config.cameras) ++counts[TypeOf(c.source)];
+  std::string types;
+  for (const auto& [type, n] : counts) {
+    types += (types.empty() ? "" : ", ") + std::to_string(n) + " " + ToString(type);
+  }
+  return std::to_string(config.cameras.size()) +
+         (config.cameras.size() == 1 ? " camera (" : " cameras (") + types + "), depth " +
+         std::to_string(config.octree.depth) + ", " + FormatNumber(config.timing.rate_hz) + " Hz";
+}
+
+std::vector<DocSection> ConfigDocSections() {
+  std::vector<DocSection> out;
+  {
+    DocSection top{
+        "Top level", "", "The file is a map of these sections; unknown keys are errors.", {}};
+    for (const Section& s : kSections) {
+      top.rows.push_back({s.key, s.type, s.required ? "required" : "see below", "", s.meaning});
+    }
+    out.push_back(std::move(top));
+  }
+  out.push_back({"cell", "cell", "The surveillance volume.", Rows<CellConfig>(kCellFields)});
+  out.push_back({"octree", "octree", "Resolution of the reconstruction and its optional filter.",
+                 Rows<OctreeSettings>(kOctreeFields)});
+  out.push_back(
+      {"timing", "timing", "Fusion rate and deadlines.", Rows<TimingConfig>(kTimingFields)});
+  out.push_back({"threads", "threads", "Thread counts.", Rows<ThreadsConfig>(kThreadsFields)});
+  {
+    DocSection cams{"cameras",
+                    "cameras[]",
+                    "A non-empty list; each entry is a camera block (the format of `hullguard "
+                    "carve --cameras`: K with R and t, K with position and look_at, or P) plus its "
+                    "source. Names must be unique.",
+                    {}};
+    for (const CameraBlockKey& k : kCameraBlockKeys) {
+      cams.rows.push_back({k.key, k.type, k.default_value, "", k.meaning});
+    }
+    cams.rows.push_back({"source", "map", "required", "",
+                         "Where the frames come from; `type` selects the keys below."});
+    for (DocRow& row : Rows<CameraConfig>(kCameraFields)) cams.rows.push_back(std::move(row));
+    out.push_back(std::move(cams));
+  }
+  out.push_back(
+      {"cameras[].source",
+       "cameras[].source",
+       "`type` selects the kind of source; each kind has its own keys (next tables).",
+       {{"type", "enum", "required", OrList(NameList<SourceType>()), "Kind of source."}}});
+  out.push_back({"source type: sim", "cameras[].source",
+                 "Frames rendered by the work-cell simulator.", Rows<SimSourceConfig>(kSimFields)});
+  out.push_back({"source type: replay", "cameras[].source", "Frames played back from a recording.",
+                 Rows<ReplaySourceConfig>(kReplayFields)});
+  out.push_back({"source type: aravis", "cameras[].source",
+                 "A GigE Vision or USB3 Vision camera through Aravis.",
+                 Rows<AravisSourceConfig>(kAravisFields)});
+  out.push_back({"source type: v4l2", "cameras[].source", "A USB camera through Video4Linux2.",
+                 Rows<V4l2SourceConfig>(kV4l2Fields)});
+  out.push_back({"background", "background", "Background model of the silhouette stage.",
+                 Rows<BackgroundConfig>(kBackgroundFields)});
+  out.push_back({"obstacles", "obstacles[]",
+                 "A list (may be empty) of static obstacle meshes; the cameras cannot see "
+                 "through them.",
+                 Rows<ObstacleConfig>(kObstacleFields)});
+  out.push_back({"dds", "dds", "DDS publishing.", Rows<DdsConfig>(kDdsFields)});
+  out.push_back({"logging", "logging", "Logging.", Rows<LoggingConfig>(kLoggingFields)});
+  return out;
+}
+
+}  // namespace hg::app

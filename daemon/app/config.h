@@ -1,0 +1,171 @@
+#pragma once
+/// @file
+/// The hullguardd configuration: plain structs with their defaults in line, and
+/// the loader that validates a whole YAML file before anything is opened.
+///
+/// Every key, its type, default, range and meaning is described once, in the
+/// field tables of config.cc; the loader reads through them and
+/// ConfigReferenceMarkdown() prints them as docs/configuration.md.
+
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "common/box.h"
+#include "geometry/camera.h"
+
+namespace hg::app {
+
+/// The surveillance volume. Plain struct, thread-compatible.
+struct CellConfig {
+  common::Box3 bounds;  ///< World-frame box watched by the cameras (m); required.
+};
+
+/// Octree settings (mirrors octree::OctreeConfig without depending on it).
+struct OctreeSettings {
+  int depth = 10;                    ///< Finest cells are bounds / 2^depth.
+  int boundary_coarsening = 3;       ///< Geometry-only boundaries stop this many levels early.
+  double knowledge_filter_m3 = 0.0;  ///< Drop occupied components below this volume; 0 = off.
+};
+
+/// Fusion timing.
+struct TimingConfig {
+  double rate_hz = 30.0;        ///< Fusion rate.
+  double deadline_ms = 25.0;    ///< Anytime deadline of one octree update; < 1000 / rate_hz.
+  int camera_timeout_ms = 200;  ///< A camera silent this long is treated as seeing nothing.
+};
+
+/// Thread counts.
+struct ThreadsConfig {
+  int octree = 2;              ///< Octree worker threads (the fusion thread included).
+  int silhouette_workers = 0;  ///< 0 = one per camera.
+};
+
+/// Kind of camera source.
+enum class SourceType { kSim, kReplay, kAravis, kV4l2 };
+/// Aravis (GigE Vision / USB3 Vision) pixel formats.
+enum class PixelFormat { kMono8, kBayerRG8, kBayerGB8, kBayerGR8, kBayerBG8, kRGB8 };
+/// Aravis acquisition trigger.
+enum class Trigger { kFreeRun, kSoftware, kHardware };
+/// V4L2 capture formats.
+enum class V4l2Format { kGrey, kYuyv, kMjpeg };
+/// Log levels.
+enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError };
+
+/// The YAML spelling of each enum value ("sim", "BayerRG8", "free_run", "GREY", "info").
+[[nodiscard]] const char* ToString(SourceType v);
+[[nodiscard]] const char* ToString(PixelFormat v);
+[[nodiscard]] const char* ToString(Trigger v);
+[[nodiscard]] const char* ToString(V4l2Format v);
+[[nodiscard]] const char* ToString(LogLevel v);
+
+/// Frames rendered by the work-cell simulator from a scene file.
+struct SimSourceConfig {
+  std::string scene;   ///< Scene file, resolved against the config file's folder.
+  std::string camera;  ///< Camera of that scene; the loader fills in the camera's own name.
+};
+
+/// Frames played back from a recording.
+struct ReplaySourceConfig {
+  std::string directory;  ///< Recording folder, resolved against the config file's folder.
+  std::string camera;     ///< Camera in the recording; the loader fills in the camera's name.
+  bool realtime = true;   ///< Pace frames by their timestamps (false: as fast as consumed).
+};
+
+/// A GigE Vision / USB3 Vision camera through Aravis. Unset optionals keep the
+/// camera's own setting.
+struct AravisSourceConfig {
+  std::string device;  ///< Serial number, device name or IP address.
+  PixelFormat pixel_format = PixelFormat::kMono8;
+  std::optional<double> exposure_us;
+  std::optional<double> gain_db;
+  std::optional<double> frame_rate_hz;
+  Trigger trigger = Trigger::kFreeRun;
+  std::optional<int> packet_size;          ///< GigE packet size (bytes).
+  std::optional<int> socket_buffer_bytes;  ///< Receive socket buffer (bytes).
+};
+
+/// A USB camera through Video4Linux2. Unset optionals keep the driver's setting.
+struct V4l2SourceConfig {
+  std::string device;  ///< Device node, /dev/videoN.
+  V4l2Format format = V4l2Format::kYuyv;
+  std::optional<double> frame_rate_hz;
+  std::optional<int> exposure;  ///< V4L2 exposure_time_absolute (units of 100 us).
+};
+
+/// Where a camera's frames come from.
+using SourceConfig =
+    std::variant<SimSourceConfig, ReplaySourceConfig, AravisSourceConfig, V4l2SourceConfig>;
+
+/// Type of a source (the variant's alternative).
+[[nodiscard]] SourceType TypeOf(const SourceConfig& source);
+
+/// One camera: its calibration (the camera block) and its source.
+struct CameraConfig {
+  geometry::CameraModel model;
+  SourceConfig source;
+  /// Silence after which the camera counts as seeing nothing (ms); the loader
+  /// fills in timing.camera_timeout_ms when the entry does not override it.
+  int timeout_ms = 0;
+};
+
+/// Background model of the silhouette stage.
+struct BackgroundConfig {
+  int learn_frames = 30;               ///< Frames averaged before the first mask.
+  int threshold = 25;                  ///< Foreground above this difference (grey levels).
+  double adapt_rate = 0.01;            ///< Per-frame blend of background pixels into the model.
+  bool shadows_are_foreground = true;  ///< Conservative: a shadow may hide a person's edge.
+};
+
+/// A static obstacle mesh (OBJ or STL).
+struct ObstacleConfig {
+  std::string file;  ///< Resolved against the config file's folder.
+};
+
+/// DDS publishing.
+struct DdsConfig {
+  int domain_id = 0;
+  std::string topic_prefix = "hullguard";
+  bool enabled = true;
+};
+
+/// Logging.
+struct LoggingConfig {
+  LogLevel level = LogLevel::kInfo;
+  bool journald = false;  ///< Log to the systemd journal instead of stderr.
+};
+
+/// The whole daemon configuration. Plain struct, thread-compatible.
+struct Config {
+  std::string source_file;  ///< The file it was read from (for messages).
+  CellConfig cell;
+  OctreeSettings octree;
+  TimingConfig timing;
+  ThreadsConfig threads;
+  std::vector<CameraConfig> cameras;
+  BackgroundConfig background;
+  std::vector<ObstacleConfig> obstacles;
+  DdsConfig dds;
+  LoggingConfig logging;
+};
+
+/// Reads and validates a config file. Relative paths in it are resolved against
+/// the file's folder.
+/// @throws common::ConfigError listing every problem found, one per line, each
+/// "file:line: key.path: problem".
+[[nodiscard]] Config LoadConfig(const std::string& path);
+
+/// Validates config text. `file` names it in messages; relative paths in it are
+/// resolved against `base_dir`.
+/// @throws common::ConfigError as LoadConfig.
+[[nodiscard]] Config ParseConfig(const std::string& text, const std::string& file,
+                                 const std::string& base_dir);
+
+/// "4 cameras (4 sim), depth 9, 30 Hz": a one-line summary for --check-config.
+[[nodiscard]] std::string Summary(const Config& config);
+
+/// The full text of docs/configuration.md, generated from the field tables.
+[[nodiscard]] std::string ConfigReferenceMarkdown();
+
+}  // namespace hg::app

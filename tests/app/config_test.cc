@@ -1,0 +1,402 @@
+#include "app/config.h"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "app/config_doc.h"
+#include "common/config_error.h"
+#include "support/run_tool.h"
+
+namespace hg::app {
+namespace {
+
+namespace fs = std::filesystem;
+
+const std::string kSourceDir = HG_SOURCE_DIR;
+const std::string kConfigDir = kSourceDir + "/config";
+
+/// A valid file with one camera of each kind and every section set to a
+/// non-default value. Line numbers matter to the tests below.
+const char* const kFull = R"(cell:
+  bounds: {min: [-1, -2, 0], max: [3, 4, 2.5]}
+octree: {depth: 8, boundary_coarsening: 2, knowledge_filter_m3: 0.002}
+timing: {rate_hz: 20, deadline_ms: 40, camera_timeout_ms: 150}
+threads: {octree: 4, silhouette_workers: 3}
+cameras:
+  - name: cam0
+    width: 1920
+    height: 1080
+    K: [1083.5, 0, 959.5, 0, 1083.5, 539.5, 0, 0, 1]
+    position: [-0.3, -0.3, 3.6]
+    look_at: [2, 2, 1]
+    source: {type: sim, scene: scenes/demo_cell.yaml}
+  - name: rec
+    width: 640
+    height: 480
+    K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]
+    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    t: [0, 0, 2]
+    source: {type: replay, directory: scenes, camera: cam7, realtime: false}
+    timeout_ms: 500
+  - name: gige
+    width: 1280
+    height: 1024
+    P: [900, 0, 639.5, 0, 0, 900, 511.5, 0, 0, 0, 1, 2]
+    source:
+      type: aravis
+      device: "192.168.10.21"
+      pixel_format: BayerRG8
+      exposure_us: 4000
+      gain_db: 3.5
+      frame_rate_hz: 25
+      trigger: software
+      packet_size: 9000
+      socket_buffer_bytes: 8388608
+  - name: usb
+    width: 640
+    height: 480
+    K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]
+    distortion: [-0.1, 0.01, 0, 0, 0]
+    position: [4, 4, 2]
+    look_at: [2, 2, 1]
+    source: {type: v4l2, device: /dev/video2, format: MJPEG, frame_rate_hz: 15, exposure: 120}
+background: {learn_frames: 50, threshold: 30, adapt_rate: 0.05, shadows_are_foreground: false}
+obstacles:
+  - file: demo_cell/obstacles.obj
+dds: {domain_id: 7, topic_prefix: cell7, enabled: false}
+logging: {level: debug, journald: true}
+)";
+
+Config Parse(const std::string& text) { return ParseConfig(text, "t.yaml", kConfigDir); }
+
+/// The message of the ConfigError that parsing `text` throws ("" if none).
+std::string ErrorOf(const std::string& text) {
+  try {
+    (void)Parse(text);
+  } catch (const common::ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) out.push_back(line);
+  return out;
+}
+
+/// `text` with the first occurrence of `from` replaced by `to`.
+std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  const std::size_t at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  if (at != std::string::npos) text.replace(at, from.size(), to);
+  return text;
+}
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+const char* const kMinimal = R"(cell:
+  bounds: {min: [0, 0, 0], max: [4, 4, 4]}
+cameras:
+  - name: a
+    width: 64
+    height: 48
+    K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1]
+    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    t: [0, 0, 1]
+    source: {type: aravis, device: cam-a}
+)";
+
+TEST(ConfigTest, DefaultsOfAMinimalFile) {
+  const Config c = Parse(kMinimal);
+  EXPECT_EQ(c.source_file, "t.yaml");
+  EXPECT_EQ(c.octree.depth, 10);
+  EXPECT_EQ(c.octree.boundary_coarsening, 3);
+  EXPECT_EQ(c.octree.knowledge_filter_m3, 0.0);
+  EXPECT_EQ(c.timing.rate_hz, 30.0);
+  EXPECT_EQ(c.timing.deadline_ms, 25.0);
+  EXPECT_EQ(c.timing.camera_timeout_ms, 200);
+  EXPECT_EQ(c.threads.octree, 2);
+  EXPECT_EQ(c.threads.silhouette_workers, 0);
+  EXPECT_EQ(c.background.learn_frames, 30);
+  EXPECT_EQ(c.background.threshold, 25);
+  EXPECT_EQ(c.background.adapt_rate, 0.01);
+  EXPECT_TRUE(c.background.shadows_are_foreground);
+  EXPECT_TRUE(c.obstacles.empty());
+  EXPECT_EQ(c.dds.domain_id, 0);
+  EXPECT_EQ(c.dds.topic_prefix, "hullguard");
+  EXPECT_TRUE(c.dds.enabled);
+  EXPECT_EQ(c.logging.level, LogLevel::kInfo);
+  EXPECT_FALSE(c.logging.journald);
+  ASSERT_EQ(c.cameras.size(), 1u);
+  EXPECT_EQ(c.cameras[0].timeout_ms, 200);  // Taken from timing.
+  const auto& aravis = std::get<AravisSourceConfig>(c.cameras[0].source);
+  EXPECT_EQ(aravis.device, "cam-a");
+  EXPECT_EQ(aravis.pixel_format, PixelFormat::kMono8);
+  EXPECT_EQ(aravis.trigger, Trigger::kFreeRun);
+  EXPECT_FALSE(aravis.exposure_us.has_value());
+  EXPECT_FALSE(aravis.packet_size.has_value());
+}
+
+TEST(ConfigTest, EverySectionReadsBack) {
+  const Config c = Parse(kFull);
+  EXPECT_EQ(c.cell.bounds.min, Eigen::Vector3d(-1, -2, 0));
+  EXPECT_EQ(c.cell.bounds.max, Eigen::Vector3d(3, 4, 2.5));
+  EXPECT_EQ(c.octree.depth, 8);
+  EXPECT_EQ(c.octree.boundary_coarsening, 2);
+  EXPECT_EQ(c.octree.knowledge_filter_m3, 0.002);
+  EXPECT_EQ(c.timing.rate_hz, 20.0);
+  EXPECT_EQ(c.timing.deadline_ms, 40.0);
+  EXPECT_EQ(c.timing.camera_timeout_ms, 150);
+  EXPECT_EQ(c.threads.octree, 4);
+  EXPECT_EQ(c.threads.silhouette_workers, 3);
+  EXPECT_EQ(c.background.learn_frames, 50);
+  EXPECT_EQ(c.background.threshold, 30);
+  EXPECT_EQ(c.background.adapt_rate, 0.05);
+  EXPECT_FALSE(c.background.shadows_are_foreground);
+  ASSERT_EQ(c.obstacles.size(), 1u);
+  EXPECT_EQ(c.obstacles[0].file, kConfigDir + "/demo_cell/obstacles.obj");
+  EXPECT_EQ(c.dds.domain_id, 7);
+  EXPECT_EQ(c.dds.topic_prefix, "cell7");
+  EXPECT_FALSE(c.dds.enabled);
+  EXPECT_EQ(c.logging.level, LogLevel::kDebug);
+  EXPECT_TRUE(c.logging.journald);
+
+  ASSERT_EQ(c.cameras.size(), 4u);
+  const CameraConfig& sim_cam = c.cameras[0];
+  EXPECT_EQ(sim_cam.model.name, "cam0");
+  EXPECT_EQ(sim_cam.model.width, 1920);
+  EXPECT_NEAR((sim_cam.model.CentreW() - Eigen::Vector3d(-0.3, -0.3, 3.6)).norm(), 0.0, 1e-9);
+  EXPECT_EQ(sim_cam.timeout_ms, 150);
+  const auto& sim = std::get<SimSourceConfig>(sim_cam.source);
+  EXPECT_EQ(sim.scene, kConfigDir + "/scenes/demo_cell.yaml");
+  EXPECT_EQ(sim.camera, "cam0");  // Defaults to the camera's own name.
+
+  const CameraConfig& rec = c.cameras[1];
+  EXPECT_EQ(rec.timeout_ms, 500);
+  const auto& replay = std::get<ReplaySourceConfig>(rec.source);
+  EXPECT_EQ(replay.directory, kConfigDir + "/scenes");
+  EXPECT_EQ(replay.camera, "cam7");
+  EXPECT_FALSE(replay.realtime);
+  EXPECT_EQ(TypeOf(rec.source), SourceType::kReplay);
+
+  const CameraConfig& gige = c.cameras[2];
+  EXPECT_DOUBLE_EQ(gige.model.K(0, 0), 900.0);
+  const auto& aravis = std::get<AravisSourceConfig>(gige.source);
+  EXPECT_EQ(aravis.device, "192.168.10.21");
+  EXPECT_EQ(aravis.pixel_format, PixelFormat::kBayerRG8);
+  EXPECT_EQ(aravis.exposure_us, 4000.0);
+  EXPECT_EQ(aravis.gain_db, 3.5);
+  EXPECT_EQ(aravis.frame_rate_hz, 25.0);
+  EXPECT_EQ(aravis.trigger, Trigger::kSoftware);
+  EXPECT_EQ(aravis.packet_size, 9000);
+  EXPECT_EQ(aravis.socket_buffer_bytes, 8388608);
+
+  const CameraConfig& usb = c.cameras[3];
+  EXPECT_EQ(usb.model.distortion[0], -0.1);
+  const auto& v4l2 = std::get<V4l2SourceConfig>(usb.source);
+  EXPECT_EQ(v4l2.device, "/dev/video2");
+  EXPECT_EQ(v4l2.format, V4l2Format::kMjpeg);
+  EXPECT_EQ(v4l2.frame_rate_hz, 15.0);
+  EXPECT_EQ(v4l2.exposure, 120);
+
+  EXPECT_EQ(Summary(c), "4 cameras (1 sim, 1 replay, 1 aravis, 1 v4l2), depth 8, 20 Hz");
+}
+
+TEST(ConfigTest, DemoConfigLoads) {
+  const Config c = LoadConfig(kConfigDir + "/demo.yaml");
+  ASSERT_EQ(c.cameras.size(), 4u);
+  EXPECT_EQ(c.octree.depth, 9);
+  EXPECT_EQ(c.cell.bounds.max, Eigen::Vector3d(4, 4, 4));
+  for (const CameraConfig& cam : c.cameras) {
+    ASSERT_EQ(TypeOf(cam.source), SourceType::kSim);
+    EXPECT_EQ(std::get<SimSourceConfig>(cam.source).camera, cam.model.name);
+  }
+  EXPECT_EQ(Summary(c), "4 cameras (4 sim), depth 9, 30 Hz");
+}
+
+TEST(ConfigTest, DocExampleLoads) {
+  const Config c = Parse(ConfigExampleYaml());
+  EXPECT_EQ(c.cameras.size(), 2u);
+}
+
+struct Mistake {
+  const char* from;     ///< Text of kFull replaced...
+  const char* to;       ///< ...by this.
+  int line;             ///< Line the error must name.
+  const char* path;     ///< Key path it must name.
+  const char* problem;  ///< Part of the problem text.
+};
+
+// Each mistake on its own, applied to the valid kFull.
+const Mistake kMistakes[] = {
+    {"max: [3, 4, 2.5]", "max: [3, -4, 2.5]", 2, "cell.bounds.max", "must exceed min"},
+    {"max: [3, 4, 2.5]", "max: [3, 4]", 2, "cell.bounds.max", "3 numbers"},
+    {"depth: 8", "depth: 17", 3, "octree.depth", "must be in 3 .. 16"},
+    {"depth: 8", "depth: 8.5", 3, "octree.depth", "expected an integer"},
+    {"knowledge_filter_m3: 0.002", "knowledge_filter_m3: -1", 3, "octree.knowledge_filter_m3",
+     ">= 0"},
+    {"octree: {", "octree: {colour: red, ", 3, "octree", "unknown key 'colour'"},
+    {"deadline_ms: 40", "deadline_ms: 60", 4, "timing.deadline_ms", "1000 / rate_hz"},
+    {"rate_hz: 20", "rate_hz: fast", 4, "timing.rate_hz", "expected a number"},
+    {"camera_timeout_ms: 150", "camera_timeout_ms: 0", 4, "timing.camera_timeout_ms", ">= 1"},
+    {"octree: 4", "octree: 0", 5, "threads.octree", "must be in 1 .. 64"},
+    {"width: 1920", "width: wide", 8, "cameras[0].width", "positive integer"},
+    {"K: [1083.5, 0, 959.5, 0, 1083.5, 539.5, 0, 0, 1]", "K: [1, 2, 3]", 10, "cameras[0].K",
+     "expected 9 numbers"},
+    {"type: sim", "type: usb", 13, "cameras[0].source.type",
+     "unknown source type 'usb' (expected sim, replay, aravis or v4l2)"},
+    {"scene: scenes/demo_cell.yaml", "scene: scenes/nope.yaml", 13, "cameras[0].source.scene",
+     "no such file"},
+    {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, camera: cam9}", 13,
+     "cameras[0].source.camera", "has no camera 'cam9'"},
+    {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, device: x}", 13,
+     "cameras[0].source", "unknown key 'device'"},
+    {"name: rec", "name: cam0", 14, "cameras[1].name", "duplicate camera name 'cam0'"},
+    {"directory: scenes", "directory: missing_dir", 20, "cameras[1].source.directory",
+     "no such directory"},
+    {"realtime: false", "realtime: maybe", 20, "cameras[1].source.realtime", "true or false"},
+    {"timeout_ms: 500", "timeout_ms: -5", 21, "cameras[1].timeout_ms", ">= 1"},
+    {"timeout_ms: 500", "timeout: 500", 21, "cameras[1]", "unknown key 'timeout'"},
+    {"pixel_format: BayerRG8", "pixel_format: YUV422", 29, "cameras[2].source.pixel_format",
+     "unknown value 'YUV422'"},
+    {"gain_db: 3.5", "gain_db: 99", 31, "cameras[2].source.gain_db", "must be in 0 .. 60"},
+    {"trigger: software", "trigger: sometimes", 33, "cameras[2].source.trigger",
+     "free_run, software or hardware"},
+    {"packet_size: 9000", "packet_size: 100", 34, "cameras[2].source.packet_size", "576"},
+    {"      device: \"192.168.10.21\"\n", "", 26, "cameras[2].source", "missing key 'device'"},
+    {"device: /dev/video2", "device: video2", 43, "cameras[3].source.device", "/dev/video0"},
+    {"format: MJPEG", "format: H264", 43, "cameras[3].source.format", "GREY, YUYV or MJPEG"},
+    {"distortion: [-0.1, 0.01, 0, 0, 0]", "distortion: [-0.1, x, 0, 0, 0]", 40,
+     "cameras[3].distortion[1]", "not a number"},
+    {"threshold: 30", "threshold: 256", 44, "background.threshold", "must be in 1 .. 255"},
+    {"adapt_rate: 0.05", "adapt_rate: 1.5", 44, "background.adapt_rate", "must be in 0 .. 1"},
+    {"file: demo_cell/obstacles.obj", "file: demo_cell/cameras.yaml", 46, "obstacles[0].file",
+     ".obj or .stl"},
+    {"file: demo_cell/obstacles.obj", "file: demo_cell/none.obj", 46, "obstacles[0].file",
+     "no such file"},
+    {"domain_id: 7", "domain_id: 233", 47, "dds.domain_id", "must be in 0 .. 232"},
+    {"level: debug", "level: loud", 48, "logging.level", "unknown value 'loud'"},
+    {"logging:", "loging:", 48, "", "unknown key 'loging'"},
+};
+
+TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {
+  ASSERT_EQ(ErrorOf(kFull), "");
+  for (const Mistake& m : kMistakes) {
+    const std::string error = ErrorOf(Replace(kFull, m.from, m.to));
+    SCOPED_TRACE(std::string(m.from) + " -> " + m.to);
+    EXPECT_EQ(Lines(error).size(), 1u) << error;
+    const std::string head = "t.yaml:" + std::to_string(m.line) + ": " +
+                             (std::string(m.path).empty() ? "" : std::string(m.path) + ": ");
+    EXPECT_EQ(error.rfind(head, 0), 0u) << error;
+    EXPECT_NE(error.find(m.problem), std::string::npos) << error;
+  }
+}
+
+TEST(ConfigTest, AllMistakesOfAFileAreReported) {
+  std::string text = kFull;
+  for (int i : {0, 2, 6, 12, 16, 22, 29, 34}) {
+    text = Replace(text, kMistakes[i].from, kMistakes[i].to);
+  }
+  const std::vector<std::string> lines = Lines(ErrorOf(text));
+  ASSERT_EQ(lines.size(), 8u) << ErrorOf(text);
+  int previous_line = 0;
+  for (int i : {0, 2, 6, 12, 16, 22, 29, 34}) {
+    const Mistake& m = kMistakes[i];
+    const std::string head = "t.yaml:" + std::to_string(m.line) + ": " + m.path + ": ";
+    bool found = false;
+    for (const std::string& line : lines) {
+      found = found || (line.rfind(head, 0) == 0 && line.find(m.problem) != std::string::npos);
+    }
+    EXPECT_TRUE(found) << head << m.problem << "\nin:\n" << ErrorOf(text);
+    EXPECT_GE(m.line, previous_line);  // Reported in file order.
+    previous_line = m.line;
+  }
+}
+
+TEST(ConfigTest, StructuralMistakes) {
+  EXPECT_EQ(ErrorOf(""), "t.yaml: expected a map with the config sections (cell, cameras, ...)");
+  EXPECT_NE(ErrorOf("cell: {bounds: {min: [0, 0, 0], max: [1, 1, 1]}}\n")
+                .find("t.yaml: missing section 'cameras'"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(Replace(kMinimal, "cameras:\n", "cameras: []\nx:\n"))
+                .find("t.yaml:3: cameras: expected a non-empty list"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(Replace(kMinimal, "    source: {type: aravis, device: cam-a}\n", ""))
+                .find("t.yaml:4: cameras[0]: missing key 'source'"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(Replace(kMinimal, "type: aravis, ", ""))
+                .find("t.yaml:10: cameras[0].source: "
+                      "missing key 'type'"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(Replace(kMinimal, "{min: [0, 0, 0], max: [4, 4, 4]}", "[0, 4]"))
+                .find("t.yaml:2: cell.bounds: expected a map"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf(Replace(kMinimal, "    t: [0, 0, 1]\n", ""))
+                .find("t.yaml:4: cameras[0]: missing key 't'"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf("cell: [\n").find("t.yaml:"), std::string::npos);  // Malformed YAML.
+}
+
+TEST(ConfigTest, ReferenceDocIsUpToDate) {
+  const std::string path = kSourceDir + "/docs/configuration.md";
+  EXPECT_TRUE(ReadFile(path) == ConfigReferenceMarkdown())
+      << path << " is stale; regenerate it with\n"
+      << "  build/daemon/hullguardd --print-config-docs > docs/configuration.md";
+}
+
+TEST(ConfigTest, ReferenceDocNamesEveryKey) {
+  const std::string md = ConfigReferenceMarkdown();
+  for (const char* key :
+       {"`octree.depth`", "`timing.deadline_ms`", "`cameras[].source.type`",
+        "`cameras[].source.socket_buffer_bytes`", "`cameras[].timeout_ms`", "`cameras[].look_at`",
+        "`background.adapt_rate`", "`obstacles[].file`", "`dds.domain_id`", "`logging.journald`"}) {
+    EXPECT_NE(md.find(key), std::string::npos) << key;
+  }
+  EXPECT_NE(md.find("| `octree.depth` | integer | 10 | 3 .. 16 |"), std::string::npos);
+  EXPECT_NE(md.find("| `logging.level` | enum | info | trace, debug, info, warn or error |"),
+            std::string::npos);
+}
+
+TEST(HullguarddTest, CheckConfig) {
+  const testing::ProcessResult ok =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + kConfigDir + "/demo.yaml");
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(ok.out, "config OK: 4 cameras (4 sim), depth 9, 30 Hz\n");
+
+  const fs::path bad = fs::temp_directory_path() / "hg_config_test_bad.yaml";
+  {
+    std::ofstream out(bad);
+    out << Replace(Replace(kMinimal, "width: 64", "width: 0"), "max: [4, 4, 4]", "max: [4, 4, -1]");
+  }
+  const testing::ProcessResult fail =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + bad.string());
+  fs::remove(bad);
+  EXPECT_EQ(fail.code, 2);
+  EXPECT_EQ(fail.out, "");
+  EXPECT_NE(fail.err.find(bad.string() + ":2: cell.bounds.max: "), std::string::npos) << fail.err;
+  EXPECT_NE(fail.err.find(bad.string() + ":5: cameras[0].width: "), std::string::npos) << fail.err;
+
+  const testing::ProcessResult run =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--config " + kConfigDir + "/demo.yaml");
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.err.find("the pipeline is not built yet"), std::string::npos);
+
+  const testing::ProcessResult docs = testing::RunTool(HG_HULLGUARDD_BIN, "--print-config-docs");
+  EXPECT_EQ(docs.code, 0);
+  EXPECT_EQ(docs.out, ConfigReferenceMarkdown());
+}
+
+}  // namespace
+}  // namespace hg::app
