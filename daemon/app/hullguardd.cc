@@ -7,6 +7,7 @@
 #include <CLI/CLI.hpp>
 
 #include "app/config.h"
+#include "app/run.h"
 #include "common/config_error.h"
 
 namespace {
@@ -22,16 +23,24 @@ int main(int argc, char** argv) {
   std::string config_path;
   std::string check_path;
   bool print_docs = false;
+  double duration_s = 0.0;
   auto* config_opt = app.add_option("--config", config_path, "Run with this config file")
                          ->check(CLI::ExistingFile);
   auto* check_opt = app.add_option("--check-config", check_path,
                                    "Validate a config file, print a summary and exit");
   auto* docs_opt = app.add_flag("--print-config-docs", print_docs,
                                 "Print the configuration reference (docs/configuration.md)");
+  app.add_option("--duration", duration_s,
+                 "With --config: stop after this many seconds (0: run until "
+                 "SIGTERM or SIGINT)")
+      ->check(CLI::NonNegativeNumber);
   config_opt->excludes(check_opt)->excludes(docs_opt);
   check_opt->excludes(docs_opt);
-  app.require_option(1);
   CLI11_PARSE(app, argc, argv);
+  if (config_path.empty() && check_path.empty() && !print_docs) {
+    std::cerr << "hullguardd: give --config FILE, --check-config FILE or --print-config-docs\n";
+    return kExitBadConfig;
+  }
 
   if (print_docs) {
     std::cout << hg::app::ConfigReferenceMarkdown();
@@ -49,6 +58,13 @@ int main(int argc, char** argv) {
     std::cout << "config OK: " << hg::app::Summary(config) << '\n';
     return 0;
   }
-  std::cerr << "hullguardd: the pipeline is not built yet; use --check-config\n";
-  return kExitCannotRun;
+  try {
+    return hg::app::RunPipeline(config, duration_s);
+  } catch (const hg::common::ConfigError& e) {
+    std::cerr << e.what() << '\n';
+    return kExitBadConfig;
+  } catch (const std::exception& e) {
+    std::cerr << "hullguardd: " << e.what() << '\n';
+    return kExitCannotRun;
+  }
 }

@@ -217,13 +217,13 @@ TEST(ConfigTest, EverySectionReadsBack) {
 TEST(ConfigTest, DemoConfigLoads) {
   const Config c = LoadConfig(kConfigDir + "/demo.yaml");
   ASSERT_EQ(c.cameras.size(), 4u);
-  EXPECT_EQ(c.octree.depth, 9);
+  EXPECT_EQ(c.octree.depth, 7);
   EXPECT_EQ(c.cell.bounds.max, Eigen::Vector3d(4, 4, 4));
   for (const CameraConfig& cam : c.cameras) {
     ASSERT_EQ(TypeOf(cam.source), SourceType::kSim);
     EXPECT_EQ(std::get<SimSourceConfig>(cam.source).camera, cam.model.name);
   }
-  EXPECT_EQ(Summary(c), "4 cameras (4 sim), depth 9, 30 Hz");
+  EXPECT_EQ(Summary(c), "4 cameras (4 sim), depth 7, 30 Hz");
 }
 
 TEST(ConfigTest, DocExampleLoads) {
@@ -373,7 +373,7 @@ TEST(HullguarddTest, CheckConfig) {
   const testing::ProcessResult ok =
       testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + kConfigDir + "/demo.yaml");
   EXPECT_EQ(ok.code, 0) << ok.err;
-  EXPECT_EQ(ok.out, "config OK: 4 cameras (4 sim), depth 9, 30 Hz\n");
+  EXPECT_EQ(ok.out, "config OK: 4 cameras (4 sim), depth 7, 30 Hz\n");
 
   const fs::path bad = fs::temp_directory_path() / "hg_config_test_bad.yaml";
   {
@@ -388,10 +388,13 @@ TEST(HullguarddTest, CheckConfig) {
   EXPECT_NE(fail.err.find(bad.string() + ":2: cell.bounds.max: "), std::string::npos) << fail.err;
   EXPECT_NE(fail.err.find(bad.string() + ":5: cameras[0].width: "), std::string::npos) << fail.err;
 
+  // The demo runs the pipeline on live simulated cameras and stops cleanly.
   const testing::ProcessResult run =
-      testing::RunTool(HG_HULLGUARDD_BIN, "--config " + kConfigDir + "/demo.yaml");
-  EXPECT_EQ(run.code, 1);
-  EXPECT_NE(run.err.find("the pipeline is not built yet"), std::string::npos);
+      testing::RunTool(HG_HULLGUARDD_BIN, "--config " + kConfigDir + "/demo.yaml --duration 2.5");
+  EXPECT_EQ(run.code, 0) << run.err;
+  EXPECT_NE(run.err.find("hullguardd: cycle "), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("cam3 ok"), std::string::npos) << run.err;
+  EXPECT_NE(run.err.find("hullguardd: stopped"), std::string::npos) << run.err;
 
   const testing::ProcessResult docs = testing::RunTool(HG_HULLGUARDD_BIN, "--print-config-docs");
   EXPECT_EQ(docs.code, 0);

@@ -1,0 +1,215 @@
+#include "pipeline/pipeline.h"
+
+#include <algorithm>
+#include <bit>
+#include <chrono>
+
+#include "octree/camera_view.h"
+
+namespace hg::pipeline {
+namespace {
+
+using SteadyClock = std::chrono::steady_clock;
+
+std::int64_t RealtimeNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+double MsSince(SteadyClock::time_point t) {
+  return std::chrono::duration<double, std::milli>(SteadyClock::now() - t).count();
+}
+
+}  // namespace
+
+Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> cameras,
+                   const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer)
+    : options_(options), consumer_(std::move(consumer)) {
+  options_.publish_depth = std::clamp(options_.publish_depth, 1, std::min(options_.depth, 10));
+  std::vector<octree::CameraView> views;
+  for (PipelineCamera& c : cameras) {
+    auto runtime = std::make_unique<CameraRuntime>(c.model, std::move(c.source), c.timeout_ms);
+    if (c.model.HasDistortion()) {
+      runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
+    }
+    views.emplace_back(c.model.Pinhole(), obstacles);
+    cameras_.push_back(std::move(runtime));
+  }
+  quadtree_ptrs_.resize(cameras_.size(), nullptr);
+  tree_ = std::make_unique<octree::Octree>(
+      octree::OctreeConfig{options_.bounds, options_.depth, options_.octree_threads,
+                           options_.boundary_coarsening},
+      std::move(views));
+  const std::size_t cells = std::size_t{1} << (3 * options_.publish_depth);
+  occupied_bits_.assign((cells + 63) / 64, 0);
+  occluded_bits_.assign((cells + 63) / 64, 0);
+}
+
+Pipeline::~Pipeline() { Stop(); }
+
+void Pipeline::Start() {
+  stop_.store(false);
+  for (std::size_t c = 0; c < cameras_.size(); ++c) {
+    threads_.emplace_back([this, c] { CaptureLoop(static_cast<int>(c)); });
+  }
+  threads_.emplace_back([this] { FusionLoop(); });
+}
+
+void Pipeline::Stop() {
+  stop_.store(true);
+  for (auto& camera : cameras_) camera->source->Stop();
+  for (std::thread& t : threads_) {
+    if (t.joinable()) t.join();
+  }
+  threads_.clear();
+}
+
+void Pipeline::CaptureLoop(int camera) {
+  CameraRuntime& c = *cameras_[camera];
+  capture::MaskFrame frame;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
+    Slot& slot = c.slot.BeginWrite();
+    if (c.undistorter) {
+      c.undistorter->Apply(frame.mask.View(), 127, &slot.mask);
+    } else {
+      slot.mask.width = frame.mask.width;
+      slot.mask.height = frame.mask.height;
+      slot.mask.pixels.assign(frame.mask.pixels.begin(), frame.mask.pixels.end());
+    }
+    slot.stamp_ns = frame.stamp_ns;
+    c.slot.Publish();
+    c.frames.fetch_add(1, std::memory_order_relaxed);
+  }
+}
+
+std::shared_ptr<OccupancySnapshot> Pipeline::FreeSnapshot() {
+  // use_count() == 1: only the pool holds it (no consumer, not the latest).
+  for (const auto& s : pool_) {
+    if (s.use_count() == 1) return s;
+  }
+  pool_.push_back(std::make_shared<OccupancySnapshot>());
+  return pool_.back();
+}
+
+void Pipeline::FillCells(OccupancySnapshot* snapshot) {
+  std::fill(occupied_bits_.begin(), occupied_bits_.end(), 0);
+  std::fill(occluded_bits_.begin(), occluded_bits_.end(), 0);
+  const int p = options_.publish_depth;
+  const std::uint32_t n = 1U << p;
+  auto mark = [&](std::vector<std::uint64_t>& bits, std::uint32_t x, std::uint32_t y,
+                  std::uint32_t z) {
+    const std::size_t i = x + static_cast<std::size_t>(n) * (y + static_cast<std::size_t>(n) * z);
+    bits[i >> 6] |= std::uint64_t{1} << (i & 63);
+  };
+  tree_->ForEachLeaf([&](const octree::Cell& cell, octree::LeafState state) {
+    if (state == octree::LeafState::kFree) return;
+    std::vector<std::uint64_t>& bits =
+        state == octree::LeafState::kOccupied ? occupied_bits_ : occluded_bits_;
+    if (cell.level >= p) {
+      const int shift = cell.level - p;
+      mark(bits, cell.x >> shift, cell.y >> shift, cell.z >> shift);
+      return;
+    }
+    // A coarse leaf covers a block of published cells.
+    const std::uint32_t span = 1U << (p - cell.level);
+    for (std::uint32_t z = cell.z * span; z < (cell.z + 1) * span; ++z) {
+      for (std::uint32_t y = cell.y * span; y < (cell.y + 1) * span; ++y) {
+        for (std::uint32_t x = cell.x * span; x < (cell.x + 1) * span; ++x) mark(bits, x, y, z);
+      }
+    }
+  });
+  snapshot->occupied.clear();
+  snapshot->occluded.clear();
+  for (std::size_t w = 0; w < occupied_bits_.size(); ++w) {
+    // Occupied wins over occluded where a published cell holds both.
+    std::uint64_t occ = occupied_bits_[w];
+    std::uint64_t hid = occluded_bits_[w] & ~occ;
+    auto emit = [&](std::uint64_t word, std::vector<GridCell>* out) {
+      while (word != 0) {
+        const std::size_t i = w * 64 + static_cast<std::size_t>(std::countr_zero(word));
+        word &= word - 1;
+        out->push_back({static_cast<std::uint16_t>(i % n), static_cast<std::uint16_t>((i / n) % n),
+                        static_cast<std::uint16_t>(i / (static_cast<std::size_t>(n) * n))});
+      }
+    };
+    emit(occ, &snapshot->occupied);
+    emit(hid, &snapshot->occluded);
+  }
+}
+
+void Pipeline::FusionLoop() {
+  const auto period = std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.rate_hz));
+  SteadyClock::time_point next = SteadyClock::now();
+  SteadyClock::time_point last_second = next;
+  while (!stop_.load(std::memory_order_relaxed)) {
+    std::this_thread::sleep_until(next);
+    next += period;
+    const SteadyClock::time_point cycle_start = SteadyClock::now();
+    if (next < cycle_start) next = cycle_start + period;  // Fell behind: skip, never burst.
+    const std::int64_t now_ns = RealtimeNs();
+    const bool new_second = cycle_start - last_second >= std::chrono::seconds(1);
+
+    std::shared_ptr<OccupancySnapshot> snapshot = FreeSnapshot();
+    PipelineHealth& health = snapshot->health;
+    health.cameras.resize(cameras_.size());
+    health.degraded = false;
+    std::int64_t oldest_stamp = now_ns;
+    health.silhouette_ms = 0.0;
+    for (std::size_t i = 0; i < cameras_.size(); ++i) {
+      CameraRuntime& c = *cameras_[i];
+      if (Slot* slot = c.slot.TakeNewest()) {
+        c.quadtree.Build(slot->mask.View(), 127);
+        c.last_stamp_ns = slot->stamp_ns;
+        health.silhouette_ms =
+            std::max(health.silhouette_ms, (RealtimeNs() - slot->stamp_ns) * 1e-6);
+        c.seen = true;
+      }
+      const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
+      const bool live = c.seen && age_ms <= c.timeout_ms;
+      // A camera that comes back was absent from the octree's view: every
+      // region is new to it.
+      if (live && !c.was_live) c.quadtree.MarkAllChanged();
+      c.was_live = live;
+      quadtree_ptrs_[i] = live ? &c.quadtree : nullptr;
+      if (live) oldest_stamp = std::min(oldest_stamp, c.last_stamp_ns);
+      const std::uint64_t frames = c.frames.load(std::memory_order_relaxed);
+      if (new_second) {
+        c.fps = static_cast<double>(frames - c.frames_at_last_second) /
+                std::chrono::duration<double>(cycle_start - last_second).count();
+        c.frames_at_last_second = frames;
+      }
+      CameraHealth& h = health.cameras[i];
+      if (h.name != c.model.name) h.name = c.model.name;
+      h.state = live ? CameraState::kOk : (c.seen ? CameraState::kStale : CameraState::kStarting);
+      h.fps = c.fps;
+      h.frame_age_ms = age_ms;
+      h.frames = frames;
+      h.drops = c.slot.drops();
+      health.degraded = health.degraded || !live;
+    }
+    if (new_second) last_second = cycle_start;
+
+    octree::UpdateControl control;
+    control.deadline = cycle_start + std::chrono::microseconds(
+                                         static_cast<std::int64_t>(options_.deadline_ms * 1e3));
+    const octree::UpdateStats stats = tree_->Update(quadtree_ptrs_, control);
+    deadline_misses_ += stats.aborted;
+    FillCells(snapshot.get());
+    snapshot->sequence = ++sequence_;
+    snapshot->stamp_ns = oldest_stamp;
+    snapshot->complete = !stats.aborted;
+    snapshot->bounds = options_.bounds;
+    snapshot->depth = options_.publish_depth;
+    health.degraded = health.degraded || stats.aborted;
+    health.octree_ms = stats.update_ms;
+    health.deadline_misses = deadline_misses_;
+    health.cycles = sequence_;
+    health.cycle_ms = MsSince(cycle_start);
+    latest_.store(snapshot, std::memory_order_release);
+    if (consumer_) consumer_(snapshot);
+  }
+}
+
+}  // namespace hg::pipeline

@@ -1,0 +1,116 @@
+#pragma once
+/// @file
+/// The reconstruction pipeline: a capture thread per camera, a fusion thread
+/// at a fixed rate, and immutable occupancy snapshots for the consumers.
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <thread>
+#include <vector>
+
+#include "capture/camera_source.h"
+#include "common/latest_value.h"
+#include "geometry/camera.h"
+#include "geometry/mesh.h"
+#include "octree/octree.h"
+#include "pipeline/snapshot.h"
+#include "silhouette/quadtree.h"
+#include "silhouette/undistort.h"
+
+namespace hg::pipeline {
+
+struct PipelineOptions {
+  common::Box3 bounds;
+  int depth = 9;
+  int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
+  int octree_threads = 2;
+  double rate_hz = 30.0;
+  double deadline_ms = 25.0;
+  /// Depth of the published grid (<= depth): each published cell is occupied
+  /// when any leaf inside it is, so coarser publishing stays conservative.
+  int publish_depth = 7;
+};
+
+struct PipelineCamera {
+  geometry::CameraModel model;  ///< As calibrated (may distort).
+  std::unique_ptr<capture::CameraSource> source;
+  int timeout_ms = 200;  ///< Silent longer than this: the camera sees nothing.
+};
+
+/// Capture thread per camera: source -> conservative undistortion -> a
+/// latest-value slot (newest frame wins, overwritten frames counted as drops).
+/// Fusion thread every 1 / rate_hz: takes each camera's newest mask and builds
+/// that camera's quadtree itself (so the changed flags are always relative to
+/// what the octree last saw), treats a camera silent for longer than its
+/// timeout as seeing nothing, updates the octree under the deadline, and
+/// publishes a snapshot. Snapshots are reused from a small pool once no
+/// consumer holds them: after warm-up a cycle allocates nothing.
+///
+/// The consumer runs on the fusion thread after each cycle; it must be quick
+/// (hand the snapshot to another thread for slow work).
+class Pipeline {
+ public:
+  using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;
+
+  Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> cameras,
+           const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer);
+  ~Pipeline();
+  Pipeline(const Pipeline&) = delete;
+  Pipeline& operator=(const Pipeline&) = delete;
+
+  void Start();
+  /// Stops every thread and returns when they have ended (within about 100 ms).
+  void Stop();
+
+  /// The newest snapshot (nullptr before the first cycle). Thread-safe.
+  [[nodiscard]] std::shared_ptr<const OccupancySnapshot> Latest() const {
+    return latest_.load(std::memory_order_acquire);
+  }
+
+ private:
+  struct Slot {
+    common::ImageU8 mask;  // Pinhole (undistorted) mask.
+    std::int64_t stamp_ns = 0;
+  };
+  struct CameraRuntime {
+    geometry::CameraModel model;
+    std::unique_ptr<capture::CameraSource> source;
+    std::unique_ptr<silhouette::ConservativeUndistorter> undistorter;
+    int timeout_ms = 200;
+    common::LatestValue<Slot> slot;
+    std::atomic<std::uint64_t> frames{0};
+    // Fusion thread only.
+    silhouette::SilhouetteQuadtree quadtree;
+    std::int64_t last_stamp_ns = 0;
+    bool seen = false;      // A frame has arrived since start.
+    bool was_live = false;  // Used in the previous cycle.
+    std::uint64_t frames_at_last_second = 0;
+    double fps = 0.0;
+    CameraRuntime(geometry::CameraModel m, std::unique_ptr<capture::CameraSource> s, int timeout)
+        : model(std::move(m)),
+          source(std::move(s)),
+          timeout_ms(timeout),
+          quadtree(model.width, model.height) {}
+  };
+
+  void CaptureLoop(int camera);
+  void FusionLoop();
+  std::shared_ptr<OccupancySnapshot> FreeSnapshot();
+  void FillCells(OccupancySnapshot* snapshot);
+
+  PipelineOptions options_;
+  std::vector<std::unique_ptr<CameraRuntime>> cameras_;
+  std::unique_ptr<octree::Octree> tree_;
+  Consumer consumer_;
+  std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
+  std::vector<std::shared_ptr<OccupancySnapshot>> pool_;
+  std::vector<std::uint64_t> occupied_bits_, occluded_bits_;  // Publishing grid bitsets.
+  std::atomic<std::shared_ptr<const OccupancySnapshot>> latest_;
+  std::atomic<bool> stop_{false};
+  std::vector<std::thread> threads_;
+  std::uint64_t sequence_ = 0;
+  std::uint64_t deadline_misses_ = 0;
+};
+
+}  // namespace hg::pipeline

@@ -1,0 +1,62 @@
+#pragma once
+/// @file
+/// What one fusion cycle hands to its consumers: an immutable occupancy
+/// snapshot and the pipeline's health. Publishers read these, never the octree.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/box.h"
+
+namespace hg::pipeline {
+
+enum class CameraState : std::uint8_t {
+  kStarting = 0,  ///< No frame yet.
+  kOk = 1,        ///< Frames arrive within the timeout.
+  kStale = 2,     ///< No frame for longer than the timeout: treated as seeing nothing.
+  kFailed = 3,    ///< The source reported an error (reconnecting).
+};
+
+struct CameraHealth {
+  std::string name;
+  CameraState state = CameraState::kStarting;
+  double fps = 0.0;           ///< Frames per second over the last second.
+  double frame_age_ms = 0.0;  ///< Age of the newest frame at the cycle's start.
+  std::uint64_t frames = 0;   ///< Frames received.
+  std::uint64_t drops = 0;    ///< Frames overwritten before use (latest wins).
+  std::uint64_t corrupt = 0;  ///< Frames counted and skipped as unreadable.
+};
+
+struct PipelineHealth {
+  bool degraded = false;  ///< Some camera is not kOk, or the last update aborted.
+  std::vector<CameraHealth> cameras;
+  double silhouette_ms = 0.0;  ///< Capture stamp -> quadtree built, slowest camera this cycle.
+  double octree_ms = 0.0;      ///< Last octree update.
+  double cycle_ms = 0.0;       ///< Cycle start -> snapshot published.
+  std::uint64_t deadline_misses = 0;  ///< Updates aborted by the deadline since start.
+  std::uint64_t cycles = 0;
+};
+
+/// A cell of the published grid: 2^depth cells per axis over the bounds.
+struct GridCell {
+  std::uint16_t x = 0;
+  std::uint16_t y = 0;
+  std::uint16_t z = 0;
+};
+
+/// Occupancy of one cycle at the publishing resolution. Conservative: a cell
+/// is listed as occupied (or occluded) when any part of it is not certified
+/// free; every cell not listed is free. Immutable once published.
+struct OccupancySnapshot {
+  std::uint64_t sequence = 0;
+  std::int64_t stamp_ns = 0;  ///< Capture time (CLOCK_REALTIME) of the oldest frame used.
+  bool complete = true;       ///< False when the update was aborted (still conservative).
+  common::Box3 bounds;
+  int depth = 0;                   ///< Publishing grid: 2^depth cells per axis.
+  std::vector<GridCell> occupied;  ///< Cells that may hold a person (seen as foreground).
+  std::vector<GridCell> occluded;  ///< Cells no camera sees (and not occupied).
+  PipelineHealth health;
+};
+
+}  // namespace hg::pipeline
