@@ -10,6 +10,9 @@
 #include "geometry/mesh.h"
 #include "pipeline/pipeline.h"
 #include "sim/scene.h"
+#ifdef HG_WITH_DDS
+#include "publish/dds_publisher.h"
+#endif
 
 namespace hg::app {
 namespace {
@@ -84,7 +87,21 @@ int RunPipeline(const Config& config, double duration_s) {
                        c.timeout_ms});
   }
 
-  pipeline::Pipeline pipeline(options, std::move(cameras), obstacles, nullptr);
+  pipeline::Pipeline::Consumer consumer;
+#ifdef HG_WITH_DDS
+  // Publish never blocks or throws; it runs on the fusion thread after each cycle.
+  publish::DdsPublisher publisher(config.dds, config.timing.rate_hz);
+  if (config.dds.enabled) {
+    consumer = [&publisher](const std::shared_ptr<const pipeline::OccupancySnapshot>& s) {
+      publisher.Publish(*s);
+    };
+  }
+#else
+  if (config.dds.enabled) {
+    std::fprintf(stderr, "hullguardd: built without Cyclone DDS: nothing is published\n");
+  }
+#endif
+  pipeline::Pipeline pipeline(options, std::move(cameras), obstacles, consumer);
   std::signal(SIGTERM, OnSignal);
   std::signal(SIGINT, OnSignal);
   pipeline.Start();

@@ -1,0 +1,159 @@
+#include "publish/dds_publisher.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <stdexcept>
+#include <vector>
+
+#include "hullguard.h"
+
+namespace hg::publish {
+namespace {
+
+using std::chrono::nanoseconds;
+
+nanoseconds CyclePeriod(double rate_hz) {
+  if (!(rate_hz > 0.0) || !std::isfinite(rate_hz)) {
+    throw std::invalid_argument("DdsPublisher: rate_hz must be > 0, got " +
+                                std::to_string(rate_hz));
+  }
+  return nanoseconds(static_cast<std::int64_t>(std::llround(1e9 / rate_hz)));
+}
+
+// Settings shared by every writer and reader: keep only the newest sample
+// (older ones are useless to a controller), volatile (a late joiner must wait
+// for a fresh cycle rather than act on an old one).
+void SetCommon(const dds::Qos& qos) {
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
+  dds_qset_durability(qos.get(), DDS_DURABILITY_VOLATILE);
+}
+
+dds::Qos WriterQos(double rate_hz, dds_reliability_kind_t reliability) {
+  dds::Qos qos;
+  SetCommon(qos);
+  // max_blocking_time 0: a reliable write whose history is full fails at once
+  // (counted) instead of stalling the fusion thread.
+  dds_qset_reliability(qos.get(), reliability, 0);
+  dds_qset_deadline(qos.get(), dds::ToDuration(OfferedDeadline(rate_hz)));
+  dds_qset_liveliness(qos.get(), DDS_LIVELINESS_AUTOMATIC, dds::ToDuration(OfferedLease(rate_hz)));
+  return qos;
+}
+
+dds::Qos ReaderQos(nanoseconds deadline, dds_reliability_kind_t reliability) {
+  dds::Qos qos;
+  SetCommon(qos);
+  dds_qset_reliability(qos.get(), reliability, DDS_MSECS(100));
+  dds_qset_deadline(qos.get(), dds::ToDuration(deadline));
+  return qos;
+}
+
+template <typename Seq, typename T>
+void Grow(Seq& seq, std::vector<T>& storage, std::size_t n) {
+  if (storage.size() < n) storage.resize(n);
+  seq._buffer = storage.data();
+  seq._maximum = static_cast<std::uint32_t>(storage.size());
+  seq._length = static_cast<std::uint32_t>(n);
+  seq._release = false;  // The vector owns the buffer, not Cyclone DDS.
+}
+
+void FillCells(const std::vector<pipeline::GridCell>& cells, dds_sequence_hullguard_GridCell& seq,
+               std::vector<hullguard_GridCell>& storage) {
+  Grow(seq, storage, cells.size());
+  for (std::size_t i = 0; i < cells.size(); ++i) {
+    storage[i] = hullguard_GridCell{cells[i].x, cells[i].y, cells[i].z};
+  }
+}
+
+}  // namespace
+
+struct DdsPublisher::Samples {
+  hullguard_Occupancy occupancy{};
+  hullguard_Status status{};
+  std::vector<hullguard_GridCell> occupied;
+  std::vector<hullguard_GridCell> occluded;
+  std::vector<hullguard_CameraStatus> cameras;
+};
+
+std::string OccupancyTopicName(const std::string& prefix) { return prefix + "/occupancy"; }
+std::string StatusTopicName(const std::string& prefix) { return prefix + "/status"; }
+
+nanoseconds OfferedDeadline(double rate_hz) { return 2 * CyclePeriod(rate_hz); }
+
+nanoseconds OfferedLease(double rate_hz) {
+  return std::max<nanoseconds>(10 * CyclePeriod(rate_hz), std::chrono::milliseconds(500));
+}
+
+dds::Qos OccupancyWriterQos(double rate_hz) {
+  return WriterQos(rate_hz, DDS_RELIABILITY_BEST_EFFORT);
+}
+dds::Qos StatusWriterQos(double rate_hz) { return WriterQos(rate_hz, DDS_RELIABILITY_RELIABLE); }
+dds::Qos OccupancyReaderQos(nanoseconds deadline) {
+  return ReaderQos(deadline, DDS_RELIABILITY_BEST_EFFORT);
+}
+dds::Qos StatusReaderQos(nanoseconds deadline) {
+  return ReaderQos(deadline, DDS_RELIABILITY_RELIABLE);
+}
+
+DdsPublisher::DdsPublisher(const app::DdsConfig& config, double rate_hz)
+    : enabled_(config.enabled),
+      occupancy_topic_(OccupancyTopicName(config.topic_prefix)),
+      status_topic_(StatusTopicName(config.topic_prefix)),
+      samples_(std::make_unique<Samples>()) {
+  CyclePeriod(rate_hz);  // Validates the rate even when disabled.
+  if (!enabled_) return;
+  participant_ = dds::Participant(static_cast<dds_domainid_t>(config.domain_id));
+  occupancy_topic_entity_ = dds::Topic(participant_, &hullguard_Occupancy_desc, occupancy_topic_);
+  status_topic_entity_ = dds::Topic(participant_, &hullguard_Status_desc, status_topic_);
+  occupancy_writer_ =
+      dds::Writer(participant_, occupancy_topic_entity_, OccupancyWriterQos(rate_hz).get());
+  status_writer_ = dds::Writer(participant_, status_topic_entity_, StatusWriterQos(rate_hz).get());
+}
+
+DdsPublisher::~DdsPublisher() = default;
+
+void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
+  if (!enabled_) return;
+  Samples& s = *samples_;
+
+  hullguard_Occupancy& occ = s.occupancy;
+  occ.sequence = snapshot.sequence;
+  occ.stamp_ns = snapshot.stamp_ns;
+  occ.complete = snapshot.complete;
+  for (int i = 0; i < 3; ++i) {
+    occ.bounds_min[i] = static_cast<float>(snapshot.bounds.min[i]);
+    occ.bounds_max[i] = static_cast<float>(snapshot.bounds.max[i]);
+  }
+  occ.depth = static_cast<std::uint8_t>(snapshot.depth);
+  FillCells(snapshot.occupied, occ.occupied, s.occupied);
+  FillCells(snapshot.occluded, occ.occluded, s.occluded);
+
+  const pipeline::PipelineHealth& health = snapshot.health;
+  hullguard_Status& st = s.status;
+  st.sequence = snapshot.sequence;
+  st.stamp_ns = snapshot.stamp_ns;
+  st.degraded = health.degraded;
+  Grow(st.cameras, s.cameras, health.cameras.size());
+  for (std::size_t i = 0; i < health.cameras.size(); ++i) {
+    const pipeline::CameraHealth& c = health.cameras[i];
+    hullguard_CameraStatus& out = s.cameras[i];
+    // Only read during dds_write, while the snapshot is alive.
+    out.name = const_cast<char*>(c.name.c_str());
+    out.state = static_cast<std::uint8_t>(c.state);
+    out.fps = static_cast<float>(c.fps);
+    out.frame_age_ms = static_cast<float>(c.frame_age_ms);
+    out.frames = c.frames;
+    out.drops = c.drops;
+    out.corrupt = c.corrupt;
+  }
+  st.silhouette_ms = static_cast<float>(health.silhouette_ms);
+  st.octree_ms = static_cast<float>(health.octree_ms);
+  st.cycle_ms = static_cast<float>(health.cycle_ms);
+  st.deadline_misses = health.deadline_misses;
+  st.cycles = health.cycles;
+
+  if (occupancy_writer_.Write(&occ) < 0) ++write_failures_;
+  if (status_writer_.Write(&st) < 0) ++write_failures_;
+}
+
+}  // namespace hg::publish

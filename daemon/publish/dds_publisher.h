@@ -1,0 +1,92 @@
+#pragma once
+/// @file
+/// Publishes each OccupancySnapshot over Cyclone DDS as two keyless topics,
+/// "<prefix>/occupancy" (hullguard::Occupancy) and "<prefix>/status"
+/// (hullguard::Status), with QoS that lets a controller tell a live stream
+/// from a stale one (deadline and liveliness). See docs/dds.md.
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "app/config.h"
+#include "pipeline/snapshot.h"
+#include "publish/dds.h"
+
+namespace hg::publish {
+
+/// Topic names for a prefix ("hullguard" -> "hullguard/occupancy").
+[[nodiscard]] std::string OccupancyTopicName(const std::string& prefix);
+[[nodiscard]] std::string StatusTopicName(const std::string& prefix);
+
+/// The deadline the writers offer at a fusion rate: two cycles. A reader must
+/// request a period at least this long to match.
+[[nodiscard]] std::chrono::nanoseconds OfferedDeadline(double rate_hz);
+
+/// The liveliness lease the writers offer at a fusion rate (automatic
+/// liveliness): ten cycles, at least 500 ms.
+[[nodiscard]] std::chrono::nanoseconds OfferedLease(double rate_hz);
+
+/// Writer QoS. Occupancy: best effort, keep last 1, volatile. Status:
+/// reliable (never blocking the caller), keep last 1, volatile. Both: deadline
+/// OfferedDeadline, automatic liveliness with OfferedLease.
+[[nodiscard]] dds::Qos OccupancyWriterQos(double rate_hz);
+[[nodiscard]] dds::Qos StatusWriterQos(double rate_hz);
+
+/// Reader QoS matching the writers, requesting `deadline` (must be >= the
+/// writer's OfferedDeadline to match). Occupancy: best effort; status:
+/// reliable. Liveliness is left at automatic/infinite, which matches any lease.
+[[nodiscard]] dds::Qos OccupancyReaderQos(std::chrono::nanoseconds deadline);
+[[nodiscard]] dds::Qos StatusReaderQos(std::chrono::nanoseconds deadline);
+
+/// Writes both topics for each snapshot.
+///
+/// Sample buffers are owned and reused: after the first snapshots have grown
+/// them to the largest cell and camera counts seen, Publish allocates nothing
+/// itself (camera names point into the snapshot). Cyclone DDS still allocates
+/// a serialized copy of each sample inside dds_write (see docs/dds.md).
+///
+/// Single-thread: call Publish from one thread (the fusion thread).
+class DdsPublisher {
+ public:
+  /// Creates the participant on `config.domain_id`, the two topics under
+  /// `config.topic_prefix`, and their writers, with QoS derived from the
+  /// fusion rate `rate_hz` (> 0). When `config.enabled` is false nothing is
+  /// created and Publish does nothing.
+  /// @throws dds::Error when Cyclone DDS refuses (bad domain, bad topic name,
+  /// bad CYCLONEDDS_URI); std::invalid_argument when rate_hz <= 0.
+  DdsPublisher(const app::DdsConfig& config, double rate_hz);
+  ~DdsPublisher();
+  DdsPublisher(const DdsPublisher&) = delete;
+  DdsPublisher& operator=(const DdsPublisher&) = delete;
+
+  /// Writes the occupancy and the status of `snapshot`. Never throws and never
+  /// blocks on slow readers: a failed write is counted in write_failures().
+  void Publish(const pipeline::OccupancySnapshot& snapshot);
+
+  /// Writes refused by Cyclone DDS since construction (a runtime fault, to be
+  /// reported in the daemon's status).
+  [[nodiscard]] std::uint64_t write_failures() const { return write_failures_; }
+
+  [[nodiscard]] bool enabled() const { return enabled_; }
+  [[nodiscard]] const std::string& occupancy_topic() const { return occupancy_topic_; }
+  [[nodiscard]] const std::string& status_topic() const { return status_topic_; }
+
+ private:
+  struct Samples;  // idlc-generated samples and their reused buffers.
+
+  bool enabled_;
+  std::string occupancy_topic_;
+  std::string status_topic_;
+  // The participant is declared first so it is deleted last (after its children).
+  dds::Participant participant_;
+  dds::Topic occupancy_topic_entity_;
+  dds::Topic status_topic_entity_;
+  dds::Writer occupancy_writer_;
+  dds::Writer status_writer_;
+  std::unique_ptr<Samples> samples_;
+  std::uint64_t write_failures_ = 0;
+};
+
+}  // namespace hg::publish

@@ -1,0 +1,243 @@
+// `hullguard echo`: subscribe to the daemon's DDS topics and print one line per
+// sample, plus a line whenever a requested deadline is missed (docs/dds.md).
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "hullguard.h"
+#include "hullguard/commands.h"
+#include "publish/dds.h"
+#include "publish/dds_publisher.h"
+
+namespace hg::tools {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace dds = publish::dds;
+
+struct EchoFlags {
+  int domain = 0;
+  std::string prefix = "hullguard";
+  int count = 0;         // 0 = until the timeout (or forever).
+  double timeout_s = 0;  // 0 = no timeout.
+  double deadline_ms = 500;
+  bool json = false;
+};
+
+constexpr dds_attach_t kOccupancyToken = 1;
+constexpr dds_attach_t kStatusToken = 2;
+constexpr std::uint32_t kStatusMask = DDS_DATA_AVAILABLE_STATUS |
+                                      DDS_REQUESTED_DEADLINE_MISSED_STATUS |
+                                      DDS_LIVELINESS_CHANGED_STATUS;
+
+const char* CameraStateName(std::uint8_t state) {
+  switch (state) {
+    case 0:
+      return "starting";
+    case 1:
+      return "ok";
+    case 2:
+      return "stale";
+    case 3:
+      return "failed";
+    default:
+      return "unknown";
+  }
+}
+
+double OccupiedVolumeM3(const hullguard_Occupancy& s) {
+  double volume = 1.0;
+  for (int i = 0; i < 3; ++i) volume *= static_cast<double>(s.bounds_max[i]) - s.bounds_min[i];
+  const double cells_per_axis = static_cast<double>(std::uint64_t{1} << std::min<int>(s.depth, 21));
+  return volume / (cells_per_axis * cells_per_axis * cells_per_axis) * s.occupied._length;
+}
+
+// Camera names come from the daemon's config; keep JSON valid whatever they hold.
+std::string JsonString(const char* s) {
+  std::string out = "\"";
+  for (; s != nullptr && *s != '\0'; ++s) {
+    const unsigned char c = static_cast<unsigned char>(*s);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += static_cast<char>(c);
+    } else if (c < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof(buf), "\\u%04x", c);
+      out += buf;
+    } else {
+      out += static_cast<char>(c);
+    }
+  }
+  return out + "\"";
+}
+
+void PrintOccupancy(const hullguard_Occupancy& s, bool json) {
+  if (json) {
+    std::printf(
+        "{\"topic\": \"occupancy\", \"sequence\": %llu, \"stamp_ns\": %lld, \"complete\": %s, "
+        "\"depth\": %d, \"occupied\": %u, \"occluded\": %u, \"occupied_m3\": %.6g}\n",
+        static_cast<unsigned long long>(s.sequence), static_cast<long long>(s.stamp_ns),
+        s.complete ? "true" : "false", s.depth, s.occupied._length, s.occluded._length,
+        OccupiedVolumeM3(s));
+  } else {
+    std::printf(
+        "occupancy seq=%llu complete=%d depth=%d occupied=%u occluded=%u occupied_m3=%.6g\n",
+        static_cast<unsigned long long>(s.sequence), s.complete ? 1 : 0, s.depth,
+        s.occupied._length, s.occluded._length, OccupiedVolumeM3(s));
+  }
+}
+
+void PrintStatus(const hullguard_Status& s, bool json) {
+  std::string cameras;
+  for (std::uint32_t i = 0; i < s.cameras._length; ++i) {
+    const hullguard_CameraStatus& c = s.cameras._buffer[i];
+    char buf[96];
+    if (json) {
+      std::snprintf(buf, sizeof(buf), "%s{\"name\": ", i == 0 ? "" : ", ");
+      cameras += buf + JsonString(c.name);
+      std::snprintf(buf, sizeof(buf), ", \"state\": \"%s\", \"fps\": %.2f}",
+                    CameraStateName(c.state), c.fps);
+      cameras += buf;
+    } else {
+      std::snprintf(buf, sizeof(buf), ":%s@%.1ffps", CameraStateName(c.state), c.fps);
+      cameras += (i == 0 ? "" : " ") + std::string(c.name != nullptr ? c.name : "") + buf;
+    }
+  }
+  if (json) {
+    std::printf(
+        "{\"topic\": \"status\", \"sequence\": %llu, \"degraded\": %s, \"deadline_misses\": %llu, "
+        "\"cycle_ms\": %.3f, \"cameras\": [%s]}\n",
+        static_cast<unsigned long long>(s.sequence), s.degraded ? "true" : "false",
+        static_cast<unsigned long long>(s.deadline_misses), s.cycle_ms, cameras.c_str());
+  } else {
+    std::printf("status seq=%llu degraded=%d deadline_misses=%llu cycle_ms=%.2f cameras=[%s]\n",
+                static_cast<unsigned long long>(s.sequence), s.degraded ? 1 : 0,
+                static_cast<unsigned long long>(s.deadline_misses), s.cycle_ms, cameras.c_str());
+  }
+}
+
+void PrintEvent(const char* stream, const char* event, std::uint32_t total, bool json) {
+  if (json) {
+    std::printf("{\"topic\": \"%s\", \"event\": \"%s\", \"total\": %u}\n", stream, event, total);
+  } else {
+    std::printf("%s stream %s (total %u)\n", stream, event, total);
+  }
+}
+
+// One subscribed topic: its reader and whether it currently counts as stale.
+struct Stream {
+  const char* name;
+  dds::Reader reader;
+  bool stale = false;
+  bool alive = false;
+};
+
+// Reports deadline and liveliness changes of `stream`, once per transition.
+void CheckEvents(Stream& stream, bool json) {
+  dds_requested_deadline_missed_status_t missed{};
+  if (dds_get_requested_deadline_missed_status(stream.reader.handle(), &missed) == DDS_RETCODE_OK &&
+      missed.total_count_change > 0 && !stream.stale) {
+    stream.stale = true;
+    PrintEvent(stream.name, "stale", missed.total_count, json);
+  }
+  dds_liveliness_changed_status_t live{};
+  if (dds_get_liveliness_changed_status(stream.reader.handle(), &live) == DDS_RETCODE_OK) {
+    if (stream.alive && live.alive_count == 0) PrintEvent(stream.name, "writer lost", 0, json);
+    stream.alive = live.alive_count > 0;
+  }
+}
+
+// Takes and prints every available sample; returns how many were valid.
+template <typename Sample, typename PrintFn>
+int TakeAll(Stream& stream, bool json, PrintFn print) {
+  constexpr int kBatch = 16;
+  int taken = 0;
+  for (;;) {
+    std::array<void*, kBatch> samples{};
+    std::array<dds_sample_info_t, kBatch> infos{};
+    const dds_return_t n =
+        dds_take(stream.reader.handle(), samples.data(), infos.data(), kBatch, kBatch);
+    if (n <= 0) break;
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      print(*static_cast<const Sample*>(samples[i]), json);
+      stream.stale = false;
+      ++taken;
+    }
+    dds_return_loan(stream.reader.handle(), samples.data(), n);
+  }
+  std::fflush(stdout);
+  return taken;
+}
+
+int RunEcho(const EchoFlags& f) {
+  const auto deadline = std::chrono::nanoseconds(static_cast<std::int64_t>(f.deadline_ms * 1e6));
+  dds::Participant participant(static_cast<dds_domainid_t>(f.domain));
+  dds::Topic occupancy_topic(participant, &hullguard_Occupancy_desc,
+                             publish::OccupancyTopicName(f.prefix));
+  dds::Topic status_topic(participant, &hullguard_Status_desc, publish::StatusTopicName(f.prefix));
+  Stream occupancy{"occupancy", dds::Reader(participant, occupancy_topic,
+                                            publish::OccupancyReaderQos(deadline).get())};
+  Stream status{"status",
+                dds::Reader(participant, status_topic, publish::StatusReaderQos(deadline).get())};
+  dds::WaitSet waitset(participant);
+  for (Stream* s : {&occupancy, &status}) {
+    dds::Check(dds_set_status_mask(s->reader.handle(), kStatusMask), "dds_set_status_mask");
+  }
+  waitset.Attach(occupancy.reader, kOccupancyToken);
+  waitset.Attach(status.reader, kStatusToken);
+
+  const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                      std::chrono::duration<double>(f.timeout_s));
+  int received = 0;
+  while (f.count == 0 || received < f.count) {
+    auto wait = std::chrono::nanoseconds(std::chrono::seconds(1));
+    if (f.timeout_s > 0) {
+      const auto left = end - Clock::now();
+      if (left <= Clock::duration::zero()) break;
+      wait = std::min<std::chrono::nanoseconds>(wait, left);
+    }
+    std::array<dds_attach_t, 2> triggered{};
+    const int n = waitset.Wait(triggered.data(), triggered.size(), wait);
+    for (int i = 0; i < n; ++i) {
+      if (triggered[i] == kOccupancyToken) {
+        received += TakeAll<hullguard_Occupancy>(occupancy, f.json, PrintOccupancy);
+        CheckEvents(occupancy, f.json);
+      } else {
+        TakeAll<hullguard_Status>(status, f.json, PrintStatus);
+        CheckEvents(status, f.json);
+      }
+    }
+    std::fflush(stdout);
+  }
+  if (received == 0) {
+    std::fprintf(stderr, "hullguard echo: no occupancy sample on domain %d, topic %s\n", f.domain,
+                 publish::OccupancyTopicName(f.prefix).c_str());
+    return kExitFailure;
+  }
+  return kExitOk;
+}
+
+}  // namespace
+
+void RegisterEcho(CLI::App& app, int* exit_code) {
+  auto flags = std::make_shared<EchoFlags>();
+  CLI::App* cmd = app.add_subcommand(
+      "echo", "Print the occupancy and status samples hullguardd publishes over DDS");
+  cmd->add_option("--domain", flags->domain, "DDS domain id")->check(CLI::Range(0, 232));
+  cmd->add_option("--prefix", flags->prefix, "Topic prefix (dds.topic_prefix of the daemon)");
+  cmd->add_option("--count", flags->count, "Exit after this many occupancy samples (0: never)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--timeout", flags->timeout_s, "Give up after this many seconds (0: never)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--deadline-ms", flags->deadline_ms,
+                  "Requested deadline (ms); must be >= the daemon's two cycles to match")
+      ->check(CLI::Range(1.0, 3.6e6));
+  cmd->add_flag("--json", flags->json, "One JSON object per line");
+  cmd->callback([flags, exit_code] { *exit_code = RunEcho(*flags); });
+}
+
+}  // namespace hg::tools
