@@ -8,7 +8,9 @@
 #include <thread>
 
 #include <gtest/gtest.h>
+
 #include <Eigen/Geometry>
+#include "scene/demo_cell.h"
 
 #include "capture/sim_source.h"
 #include "common/latest_value.h"
@@ -69,17 +71,9 @@ std::shared_ptr<sim::Scene> StandingScene() {
   const std::vector<Eigen::Vector3d> eyes = {{-0.4, -0.4, 2.4}, {3.4, 3.4, 2.4}, {3.4, -0.4, 2.4}};
   for (std::size_t i = 0; i < eyes.size(); ++i) {
     sim::SceneCamera camera;
+    camera.model = scene::LookAtCamera(eyes[i], target, 320, 240, 260);
     geometry::CameraModel& m = camera.model;
     m.name = std::string("cam").append(std::to_string(i));
-    m.width = 320;
-    m.height = 240;
-    m.K << 260, 0, 159.5, 0, 260, 119.5, 0, 0, 1;
-    const Eigen::Vector3d forward = (target - eyes[i]).normalized();
-    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
-    m.R_CW.row(0) = right.transpose();
-    m.R_CW.row(1) = forward.cross(right).transpose();
-    m.R_CW.row(2) = forward.transpose();
-    m.t_CW = -m.R_CW * eyes[i];
     if (i == 1) m.distortion = {-0.08, 0.01, 0, 0, 0};
     scene->cameras.push_back(camera);
   }

@@ -3,7 +3,9 @@
 #include <filesystem>
 
 #include <gtest/gtest.h>
+
 #include <Eigen/Geometry>
+#include "scene/demo_cell.h"
 
 #include "sim/simulator.h"
 
@@ -19,17 +21,9 @@ Scene SmallScene() {
   const std::vector<Eigen::Vector3d> eyes = {{-0.4, -0.4, 2.4}, {3.4, 3.4, 2.4}, {3.4, -0.4, 2.4}};
   for (std::size_t i = 0; i < eyes.size(); ++i) {
     SceneCamera camera;
+    camera.model = scene::LookAtCamera(eyes[i], target, 240, 180, 200);
     geometry::CameraModel& m = camera.model;
-    m.name = "cam" + std::to_string(i);
-    m.width = 240;
-    m.height = 180;
-    m.K << 200, 0, 119.5, 0, 200, 89.5, 0, 0, 1;
-    const Eigen::Vector3d forward = (target - eyes[i]).normalized();
-    const Eigen::Vector3d right = forward.cross(Eigen::Vector3d::UnitZ()).normalized();
-    m.R_CW.row(0) = right.transpose();
-    m.R_CW.row(1) = forward.cross(right).transpose();
-    m.R_CW.row(2) = forward.transpose();
-    m.t_CW = -m.R_CW * eyes[i];
+    m.name = std::string("cam").append(std::to_string(i));
     if (i == 1) m.distortion = {-0.1, 0.02, 0.001, -0.001, 0.0};
     if (i == 2) camera.time_offset_s = 0.04;
     scene.cameras.push_back(camera);
@@ -41,7 +35,7 @@ Scene SmallScene() {
        Rgb(0.5F, 0.4F, 0.3F)});
   for (int p = 0; p < 2; ++p) {
     Person person;
-    person.name = "p" + std::to_string(p);
+    person.name = std::string("p").append(std::to_string(p));
     person.start_W = Eigen::Vector3d(0.7 + p, 0.8, 0.0);
     Action walk;
     walk.kind = ActionKind::kWalk;
