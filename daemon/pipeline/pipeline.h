@@ -49,6 +49,13 @@ struct PipelineCamera {
 ///
 /// The consumer runs on the fusion thread after each cycle; it must be quick
 /// (hand the snapshot to another thread for slow work).
+///
+/// Not yet handled: cameras whose newest frames were captured at different
+/// instants. A camera's background certifies space free only at its own
+/// capture time; a person who moved in between can be carved by an older
+/// frame. Until masks are dilated by the distance a person can travel over the
+/// capture skew, the promise holds only for synchronised (triggered) cameras
+/// or for people who move less than a cell over the skew.
 class Pipeline {
  public:
   using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;

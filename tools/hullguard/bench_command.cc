@@ -10,6 +10,7 @@
 #include "common/config_error.h"
 #include "hullguard/commands.h"
 #include "hullguard/dense_baseline.h"
+#include "hullguard/frame_stats.h"
 #ifdef HG_WITH_OPEN3D
 #include "hullguard/open3d_baseline.h"
 #endif
@@ -33,23 +34,7 @@ struct BenchFlags {
   bool json = false;
 };
 
-/// Median, 99th percentile and maximum of a series (nearest rank).
-struct Summary {
-  double median = 0.0;
-  double p99 = 0.0;
-  double max = 0.0;
-};
-
-Summary Summarise(std::vector<double> v) {
-  if (v.empty()) return {};
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    return v[std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5))];
-  };
-  return {at(0.5), at(0.99), v.back()};
-}
-
-std::string JsonSummary(const Summary& s) {
+std::string JsonSummary(const FrameStats& s) {
   char buf[128];
   std::snprintf(buf, sizeof(buf), "{\"median_ms\": %.3f, \"p99_ms\": %.3f, \"max_ms\": %.3f}",
                 s.median, s.p99, s.max);
@@ -169,8 +154,8 @@ int RunBench(const BenchFlags& f) {
     }
   }
 
-  const Summary render = Summarise(render_ms), quad = Summarise(quadtree_ms),
-                oct = Summarise(octree_ms), dense_sum = Summarise(dense_ms);
+  const FrameStats render = Summarise(render_ms), quad = Summarise(quadtree_ms),
+                   oct = Summarise(octree_ms), dense_sum = Summarise(dense_ms);
   const octree::Octree& tree = engine.tree();
   const auto& cam0 = s.cameras.front().model;
   const double ratio = oct.median > 0 ? dense_sum.median / oct.median : 0.0;
@@ -202,7 +187,7 @@ int RunBench(const BenchFlags& f) {
         s.name.c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames, s.rate_hz, f.depth,
         1 << f.depth, f.threads);
     std::printf("  %-34s %9s %9s %9s\n", "stage (ms per frame)", "median", "p99", "max");
-    auto row = [](const char* name, const Summary& x) {
+    auto row = [](const char* name, const FrameStats& x) {
       std::printf("  %-34s %9.2f %9.2f %9.2f\n", name, x.median, x.p99, x.max);
     };
     row("render masks (simulator)", render);

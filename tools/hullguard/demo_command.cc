@@ -11,6 +11,7 @@
 #include "geometry/camera_yaml.h"
 #include "hullguard/carve.h"
 #include "hullguard/commands.h"
+#include "hullguard/frame_stats.h"
 #include "hullguard/scene_engine.h"
 #include "octree/ply.h"
 #include "silhouette/mask_io.h"
@@ -108,10 +109,7 @@ int RunDemo(const DemoFlags& f) {
   for (const auto& m : obstacles) all_obstacles.Append(m);
   geometry::WriteObj((out / "obstacles.obj").string(), all_obstacles);
 
-  auto median = [](std::vector<double> v) {
-    std::sort(v.begin(), v.end());
-    return v[v.size() / 2];
-  };
+  auto median = [](const std::vector<double>& v) { return Summarise(v).median; };
   const double first_ms = octree_ms.front();
   octree_ms.erase(octree_ms.begin());
   const common::Box3& b = s.bounds;

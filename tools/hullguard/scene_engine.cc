@@ -15,10 +15,7 @@ double MsSince(Clock::time_point t) {
 }
 
 bool InsideCapsule(const sim::BodyCapsule& c, const Eigen::Vector3d& p) {
-  const Eigen::Vector3d d = c.b_W - c.a_W;
-  const double len2 = d.squaredNorm();
-  const double s = len2 > 0 ? std::clamp((p - c.a_W).dot(d) / len2, 0.0, 1.0) : 0.0;
-  return (c.a_W + s * d - p).squaredNorm() <= c.radius_m * c.radius_m;
+  return sim::Contains(sim::CapsuleSolid{c.a_W, c.b_W, c.radius_m}, p);
 }
 
 bool InsideBody(const sim::BodyState& body, const Eigen::Vector3d& p) {
