@@ -67,6 +67,7 @@ int RunPipeline(const Config& config, double duration_s) {
 
   std::map<std::string, std::shared_ptr<const sim::Scene>> scenes;
   const auto start = std::chrono::steady_clock::now();
+  const capture::SimClock sim_clock = capture::SimClock::Now();
   std::vector<pipeline::PipelineCamera> cameras;
   for (const CameraConfig& c : config.cameras) {
     const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
@@ -82,9 +83,9 @@ int RunPipeline(const Config& config, double duration_s) {
       if (scene->cameras[i].model.name == sim_source->camera) index = static_cast<int>(i);
     }
     // The loader checked that the scene defines the camera.
-    cameras.push_back({c.model,
-                       std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, start),
-                       c.timeout_ms});
+    cameras.push_back(
+        {c.model, std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, sim_clock),
+         c.timeout_ms});
   }
 
   pipeline::Pipeline::Consumer consumer;
@@ -106,6 +107,11 @@ int RunPipeline(const Config& config, double duration_s) {
   std::signal(SIGINT, OnSignal);
   pipeline.Start();
   std::fprintf(stderr, "hullguardd: running %s\n", Summary(config).c_str());
+  if (!scenes.empty()) {
+    // Lets a test or a viewer evaluate the scene's ground truth for a stamp.
+    std::fprintf(stderr, "hullguardd: sim scene time 0 is %lld ns (CLOCK_REALTIME)\n",
+                 static_cast<long long>(sim_clock.epoch_ns));
+  }
   auto next_report = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   while (!g_stop.load()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));

@@ -13,14 +13,26 @@
 
 namespace hg::capture {
 
-/// Renders ground-truth masks of camera `camera_index` of a scene in real time:
-/// a frame every 1 / rate_hz seconds of steady time since `start`, showing the
-/// scene at that time plus the camera's capture offset, stamped with the
-/// system clock. Paced by sleeping in Next() (capture thread only).
+/// The simulated scene's clock: scene time 0 is the steady instant `start`,
+/// which was `epoch_ns` on the system clock. A frame's stamp minus epoch_ns is
+/// the scene time it shows, so ground truth can be evaluated for any stamp.
+struct SimClock {
+  std::chrono::steady_clock::time_point start;
+  std::int64_t epoch_ns = 0;
+  /// Scene time 0 = now.
+  static SimClock Now();
+};
+
+/// Renders ground-truth masks of camera `camera_index` of a scene in real time.
+/// The camera captures at scene times offset + k / rate_hz (offset: the
+/// camera's capture offset in the scene, modulo the period, as free-running
+/// cameras do); each frame shows the scene at its capture time and is stamped
+/// with it. Paced by sleeping in Next() (capture thread only); frames that fall
+/// due while the thread is busy are skipped, as a camera's would be.
 class SimSource : public CameraSource {
  public:
   SimSource(std::shared_ptr<const sim::Scene> scene, int camera_index, double rate_hz,
-            std::chrono::steady_clock::time_point start);
+            SimClock clock);
 
   bool Next(MaskFrame* frame, std::chrono::milliseconds timeout) override;
   void Stop() override { stopped_.store(true); }
@@ -33,7 +45,7 @@ class SimSource : public CameraSource {
   std::shared_ptr<const sim::Scene> scene_;
   int camera_index_;
   std::chrono::nanoseconds period_;
-  std::chrono::steady_clock::time_point start_;
+  SimClock clock_;
   std::chrono::steady_clock::time_point next_;
   sim::MaskRenderer renderer_;
   std::vector<sim::BodyState> people_;

@@ -5,6 +5,7 @@
 #include <chrono>
 
 #include "octree/camera_view.h"
+#include "silhouette/tile_dilation.h"
 
 namespace hg::pipeline {
 namespace {
@@ -155,25 +156,21 @@ void Pipeline::FusionLoop() {
     PipelineHealth& health = snapshot->health;
     health.cameras.resize(cameras_.size());
     health.degraded = false;
-    std::int64_t oldest_stamp = now_ns;
     health.silhouette_ms = 0.0;
+    // Pass 1: newest frames, and which cameras are live.
+    std::int64_t newest_stamp = 0;
     for (std::size_t i = 0; i < cameras_.size(); ++i) {
       CameraRuntime& c = *cameras_[i];
-      if (Slot* slot = c.slot.TakeNewest()) {
-        c.quadtree.Build(slot->mask.View(), 127);
+      if (const Slot* slot = c.slot.TakeNewest()) {
+        c.current = slot;
+        c.fresh = true;
         c.last_stamp_ns = slot->stamp_ns;
-        health.silhouette_ms =
-            std::max(health.silhouette_ms, (RealtimeNs() - slot->stamp_ns) * 1e-6);
         c.seen = true;
       }
       const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
       const bool live = c.seen && age_ms <= c.timeout_ms;
-      // A camera that comes back was absent from the octree's view: every
-      // region is new to it.
-      if (live && !c.was_live) c.quadtree.MarkAllChanged();
-      c.was_live = live;
+      if (live) newest_stamp = std::max(newest_stamp, c.last_stamp_ns);
       quadtree_ptrs_[i] = live ? &c.quadtree : nullptr;
-      if (live) oldest_stamp = std::min(oldest_stamp, c.last_stamp_ns);
       const std::uint64_t frames = c.frames.load(std::memory_order_relaxed);
       if (new_second) {
         c.fps = static_cast<double>(frames - c.frames_at_last_second) /
@@ -189,6 +186,46 @@ void Pipeline::FusionLoop() {
       h.drops = c.slot.drops();
       health.degraded = health.degraded || !live;
     }
+    // Pass 2: quadtrees, each mask dilated for its camera's lag behind the
+    // newest frame. A camera lagging so far that no dilation covers the
+    // distance sees nothing this cycle.
+    std::int64_t oldest_used = newest_stamp;
+    for (std::size_t i = 0; i < cameras_.size(); ++i) {
+      CameraRuntime& c = *cameras_[i];
+      if (quadtree_ptrs_[i] != nullptr) {
+        const double lag_s = (newest_stamp - c.last_stamp_ns) * 1e-9;
+        const int radius = silhouette::CoveringRadiusPx(c.pinhole, options_.max_speed_mps * lag_s,
+                                                        options_.min_camera_distance_m);
+        if (radius < 0) {
+          quadtree_ptrs_[i] = nullptr;
+          health.cameras[i].state = CameraState::kStale;
+          health.degraded = true;
+        } else {
+          const int tiles = radius == 0 ? 0 : radius / silhouette::TileDilator::kTile + 1;
+          if (c.fresh || tiles != c.built_radius_tiles) {
+            if (tiles == 0) {
+              c.quadtree.Build(c.current->mask.View(), 127);
+            } else {
+              c.dilator.Apply(c.current->mask.View(), radius, &c.dilated);
+              c.quadtree.Build(c.dilated.View(), 127);
+            }
+            if (c.fresh) {
+              health.silhouette_ms =
+                  std::max(health.silhouette_ms, (RealtimeNs() - c.last_stamp_ns) * 1e-6);
+            }
+            c.fresh = false;
+            c.built_radius_tiles = tiles;
+          }
+          oldest_used = std::min(oldest_used, c.last_stamp_ns);
+        }
+      }
+      const bool live = quadtree_ptrs_[i] != nullptr;
+      // A camera that comes back was absent from the octree's view: every
+      // region is new to it.
+      if (live && !c.was_live) c.quadtree.MarkAllChanged();
+      c.was_live = live;
+    }
+    health.skew_ms = (newest_stamp - oldest_used) * 1e-6;
     if (new_second) last_second = cycle_start;
 
     octree::UpdateControl control;
@@ -198,7 +235,7 @@ void Pipeline::FusionLoop() {
     deadline_misses_ += stats.aborted;
     FillCells(snapshot.get());
     snapshot->sequence = ++sequence_;
-    snapshot->stamp_ns = oldest_stamp;
+    snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
     snapshot->complete = !stats.aborted;
     snapshot->bounds = options_.bounds;
     snapshot->depth = options_.publish_depth;

@@ -16,6 +16,7 @@
 #include "octree/octree.h"
 #include "pipeline/snapshot.h"
 #include "silhouette/quadtree.h"
+#include "silhouette/tile_dilation.h"
 #include "silhouette/undistort.h"
 
 namespace hg::pipeline {
@@ -30,6 +31,14 @@ struct PipelineOptions {
   /// Depth of the published grid (<= depth): each published cell is occupied
   /// when any leaf inside it is, so coarser publishing stays conservative.
   int publish_depth = 7;
+  /// Capture skew: cameras' newest frames are taken at different instants. The
+  /// snapshot is made valid for the newest capture time T by dilating each
+  /// older mask by the image of a ball of radius max_speed_mps * (T - t_i),
+  /// for people at least min_camera_distance_m from the camera (see
+  /// silhouette::CoveringRadiusPx). 2.0 m/s is the approach speed of
+  /// ISO 13855 for a walking person.
+  double max_speed_mps = 2.0;
+  double min_camera_distance_m = 1.0;
 };
 
 struct PipelineCamera {
@@ -50,12 +59,13 @@ struct PipelineCamera {
 /// The consumer runs on the fusion thread after each cycle; it must be quick
 /// (hand the snapshot to another thread for slow work).
 ///
-/// Not yet handled: cameras whose newest frames were captured at different
-/// instants. A camera's background certifies space free only at its own
-/// capture time; a person who moved in between can be carved by an older
-/// frame. Until masks are dilated by the distance a person can travel over the
-/// capture skew, the promise holds only for synchronised (triggered) cameras
-/// or for people who move less than a cell over the skew.
+/// Capture skew: a camera's background certifies space free only at its own
+/// capture time t_i. The snapshot is stamped with the newest capture time T of
+/// the cameras used, and each camera's mask is dilated by the distance a
+/// person can move in T - t_i before it enters the octree, so the published
+/// occupancy holds every person as they were at T (for people farther than
+/// min_camera_distance_m from every camera). Consumers add their own reaction
+/// time to the stamp's age, as for any safety sensor.
 class Pipeline {
  public:
   using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;
@@ -89,6 +99,12 @@ class Pipeline {
     std::atomic<std::uint64_t> frames{0};
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
+    silhouette::TileDilator dilator;
+    common::ImageU8 dilated;
+    geometry::CameraModel pinhole;
+    const Slot* current = nullptr;  // Newest frame taken; valid until the next take.
+    bool fresh = false;             // `current` not built into the quadtree yet.
+    int built_radius_tiles = 0;     // Dilation the quadtree was built with.
     std::int64_t last_stamp_ns = 0;
     bool seen = false;      // A frame has arrived since start.
     bool was_live = false;  // Used in the previous cycle.
@@ -98,7 +114,10 @@ class Pipeline {
         : model(std::move(m)),
           source(std::move(s)),
           timeout_ms(timeout),
-          quadtree(model.width, model.height) {}
+          quadtree(model.width, model.height),
+          dilator(model.width, model.height),
+          dilated(model.width, model.height),
+          pinhole(model.Pinhole()) {}
   };
 
   void CaptureLoop(int camera);

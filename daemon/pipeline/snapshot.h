@@ -32,6 +32,7 @@ struct PipelineHealth {
   bool degraded = false;  ///< Some camera is not kOk, or the last update aborted.
   std::vector<CameraHealth> cameras;
   double silhouette_ms = 0.0;  ///< Capture stamp -> quadtree built, slowest camera this cycle.
+  double skew_ms = 0.0;        ///< Newest minus oldest capture time of the frames used.
   double octree_ms = 0.0;      ///< Last octree update.
   double cycle_ms = 0.0;       ///< Cycle start -> snapshot published.
   std::uint64_t deadline_misses = 0;  ///< Updates aborted by the deadline since start.
@@ -50,8 +51,11 @@ struct GridCell {
 /// free; every cell not listed is free. Immutable once published.
 struct OccupancySnapshot {
   std::uint64_t sequence = 0;
-  std::int64_t stamp_ns = 0;  ///< Capture time (CLOCK_REALTIME) of the oldest frame used.
-  bool complete = true;       ///< False when the update was aborted (still conservative).
+  /// The instant (CLOCK_REALTIME) the occupancy holds for: the newest capture
+  /// time of the frames used; older frames were dilated by the distance a
+  /// person can move since their own capture.
+  std::int64_t stamp_ns = 0;
+  bool complete = true;  ///< False when the update was aborted (still conservative).
   common::Box3 bounds;
   int depth = 0;                   ///< Publishing grid: 2^depth cells per axis.
   std::vector<GridCell> occupied;  ///< Cells that may hold a person (seen as foreground).

@@ -147,6 +147,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
     out.corrupt = c.corrupt;
   }
   st.silhouette_ms = static_cast<float>(health.silhouette_ms);
+  st.skew_ms = static_cast<float>(health.skew_ms);
   st.octree_ms = static_cast<float>(health.octree_ms);
   st.cycle_ms = static_cast<float>(health.cycle_ms);
   st.deadline_misses = health.deadline_misses;

@@ -86,22 +86,44 @@ std::shared_ptr<sim::Scene> StandingScene() {
   return scene;
 }
 
+// The standing scene's cameras at capture offsets 0, 13 and 26 ms, and a
+// person walking back and forth at 2 m/s.
+std::shared_ptr<sim::Scene> SkewedWalkingScene() {
+  auto scene = StandingScene();
+  for (std::size_t i = 0; i < scene->cameras.size(); ++i) {
+    scene->cameras[i].time_offset_s = 0.013 * static_cast<double>(i);
+  }
+  sim::Person& walker = scene->people[0];
+  walker.start_W = Eigen::Vector3d(0.7, 1.2, 0.0);
+  sim::Action walk;
+  walk.kind = sim::ActionKind::kWalk;
+  walk.speed_mps = 2.0;
+  for (int leg = 0; leg < 20; ++leg) {
+    walk.path_W.emplace_back(leg % 2 == 0 ? 2.3 : 0.7, 1.2, 0.0);
+  }
+  walk.duration_s = 1.6 * 20 / walk.speed_mps;
+  walker.actions = {walk};
+  return scene;
+}
+
 struct Rig {
-  std::shared_ptr<sim::Scene> scene = StandingScene();
+  std::shared_ptr<sim::Scene> scene;
+  capture::SimClock clock = capture::SimClock::Now();
   std::vector<capture::SimSource*> sources;
   std::unique_ptr<Pipeline> pipeline;
 
-  Rig() {
+  explicit Rig(std::shared_ptr<sim::Scene> s = StandingScene(), double max_speed_mps = 2.0)
+      : scene(std::move(s)) {
     PipelineOptions options;
+    options.max_speed_mps = max_speed_mps;
     options.bounds = scene->bounds;
     options.depth = 7;
     options.publish_depth = 6;
     options.rate_hz = 30;
     options.deadline_ms = 30;
     std::vector<PipelineCamera> cameras;
-    const auto start = std::chrono::steady_clock::now();
     for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
-      auto source = std::make_unique<capture::SimSource>(scene, c, 30.0, start);
+      auto source = std::make_unique<capture::SimSource>(scene, c, 30.0, clock);
       sources.push_back(source.get());
       cameras.push_back({scene->cameras[c].model, std::move(source), 150});
     }
@@ -122,8 +144,10 @@ struct Rig {
     return nullptr;
   }
 
-  // Points inside the people that fall in a cell listed neither occupied nor occluded.
+  // Points inside the people, as they were at the snapshot's stamp, that fall
+  // in a cell listed neither occupied nor occluded.
   int PointsReportedFree(const OccupancySnapshot& s) const {
+    const double t = static_cast<double>(s.stamp_ns - clock.epoch_ns) * 1e-9;
     const int n = 1 << s.depth;
     std::vector<std::uint8_t> listed(static_cast<std::size_t>(n) * n * n, 0);
     for (const auto* cells : {&s.occupied, &s.occluded}) {
@@ -134,7 +158,7 @@ struct Rig {
     std::uniform_real_distribution<double> u01(0.0, 1.0);
     int free = 0;
     for (const sim::Person& person : scene->people) {
-      const sim::BodyState body = sim::EvaluatePerson(person, 0.0);
+      const sim::BodyState body = sim::EvaluatePerson(person, t);
       for (const sim::BodyCapsule& cap : body.parts) {
         for (int i = 0; i < 200; ++i) {
           // A point of the capsule's segment pushed out by up to the radius.
@@ -182,6 +206,37 @@ TEST(PipelineTest, LiveSnapshotsKeepPeopleOccupiedAndALostCameraOnlyGrowsOccupan
   ASSERT_NE(recovered, nullptr) << "camera did not recover";
   EXPECT_EQ(rig.PointsReportedFree(*recovered), 0);
   rig.pipeline->Stop();
+}
+
+// Free-running cameras capture at different instants. With the skew
+// compensation every point of the walking person at the snapshot's stamp is
+// occupied; without it (max speed 0) older frames carve the walker's leading
+// edge, which shows that the check can fail.
+TEST(PipelineTest, CaptureSkewIsCompensated) {
+  auto count_free = [](double max_speed_mps, double* skew_ms) {
+    Rig rig(SkewedWalkingScene(), max_speed_mps);
+    std::uint64_t seen = 0;
+    int free = 0, snapshots = 0;
+    *skew_ms = 0.0;
+    const auto give_up = std::chrono::steady_clock::now() + 20s;
+    while (snapshots < 40 && std::chrono::steady_clock::now() < give_up) {
+      auto s = rig.pipeline->Latest();
+      if (s && s->sequence != seen && !s->health.degraded && s->sequence > 3) {
+        seen = s->sequence;
+        free += rig.PointsReportedFree(*s);
+        *skew_ms = std::max(*skew_ms, s->health.skew_ms);
+        ++snapshots;
+      }
+      std::this_thread::sleep_for(5ms);
+    }
+    rig.pipeline->Stop();
+    EXPECT_EQ(snapshots, 40);
+    return free;
+  };
+  double skew_ms = 0.0;
+  EXPECT_EQ(count_free(2.0, &skew_ms), 0);
+  EXPECT_GT(skew_ms, 10.0) << "cameras were expected to capture at different instants";
+  EXPECT_GT(count_free(0.0, &skew_ms), 0);
 }
 
 }  // namespace

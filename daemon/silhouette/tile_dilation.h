@@ -1,0 +1,48 @@
+#pragma once
+/// @file
+/// Conservative, cheap dilation of silhouette masks at 8x8-tile granularity.
+
+#include <cstdint>
+#include <vector>
+
+#include "common/image.h"
+#include "geometry/camera.h"
+
+namespace hg::silhouette {
+
+/// Grows the foreground of a mask by at least `radius_px` pixels in every
+/// direction (Chebyshev distance, so it also covers the Euclidean disc), at
+/// the granularity of 8x8 tiles: the result is foreground on every tile within
+/// radius_px / 8 + 1 tiles of a tile holding any foreground pixel. It never
+/// shrinks the foreground and overshoots by less than two tiles. Cost is one
+/// pass over the mask plus a pass over the tile map, independent of the radius.
+///
+/// Thread-compatible; buffers are sized at construction, Apply() does not
+/// allocate once the output has the mask's size.
+class TileDilator {
+ public:
+  static constexpr int kTile = 8;
+
+  TileDilator(int width, int height);
+
+  /// Writes the dilated mask (255 foreground, 0 background; input foreground
+  /// iff > 127) to *out. radius_px <= 0 copies the mask as it is.
+  void Apply(const common::ImageViewU8& mask, int radius_px, common::ImageU8* out);
+
+ private:
+  int width_, height_, tiles_x_, tiles_y_;
+  std::vector<std::uint8_t> tiles_, scratch_;
+  std::vector<int> prefix_;
+};
+
+/// Pixel radius that covers every point within `distance_m` of a foreground
+/// point, for points at least `min_depth_m` from the camera centre, anywhere
+/// in the image of the pinhole camera: f * delta * sec^2(theta_max + delta)
+/// with delta = asin(distance_m / min_depth_m) the angle the distance can
+/// subtend and theta_max the angle of the farthest image corner. Returns
+/// a negative value when the distance subtends 90 degrees or more (no finite
+/// dilation covers it: the camera must not certify anything).
+[[nodiscard]] int CoveringRadiusPx(const geometry::CameraModel& pinhole, double distance_m,
+                                   double min_depth_m);
+
+}  // namespace hg::silhouette

@@ -1,0 +1,107 @@
+#include "silhouette/tile_dilation.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include <Eigen/Geometry>
+
+namespace hg::silhouette {
+namespace {
+
+common::ImageU8 RandomBlobs(int w, int h, int blobs, std::mt19937_64& rng) {
+  common::ImageU8 mask(w, h, 0);
+  std::uniform_int_distribution<int> u(0, w - 1), v(0, h - 1), size(0, 6);
+  for (int b = 0; b < blobs; ++b) {
+    const int u0 = u(rng), v0 = v(rng), s = size(rng);
+    for (int y = std::max(0, v0 - s); y <= std::min(h - 1, v0 + s); ++y) {
+      for (int x = std::max(0, u0 - s); x <= std::min(w - 1, u0 + s); ++x) mask.At(x, y) = 200;
+    }
+  }
+  return mask;
+}
+
+// Chebyshev distance from every pixel to the nearest foreground pixel (brute force).
+std::vector<int> DistanceToForeground(const common::ImageU8& mask) {
+  std::vector<int> d(mask.pixels.size(), 1 << 20);
+  for (int y = 0; y < mask.height; ++y) {
+    for (int x = 0; x < mask.width; ++x) {
+      if (mask.At(x, y) <= 127) continue;
+      for (int v = 0; v < mask.height; ++v) {
+        for (int u = 0; u < mask.width; ++u) {
+          int& e = d[static_cast<std::size_t>(v) * mask.width + u];
+          e = std::min(e, std::max(std::abs(u - x), std::abs(v - y)));
+        }
+      }
+    }
+  }
+  return d;
+}
+
+TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
+  std::mt19937_64 rng(7);
+  for (int trial = 0; trial < 12; ++trial) {
+    const int w = 61 + trial * 3, h = 45 + trial;  // Not multiples of the tile size.
+    const common::ImageU8 mask = RandomBlobs(w, h, 1 + trial % 4, rng);
+    const std::vector<int> dist = DistanceToForeground(mask);
+    TileDilator dilator(w, h);
+    common::ImageU8 out;
+    for (const int radius : {0, 1, 5, 8, 13, 30}) {
+      dilator.Apply(mask.View(), radius, &out);
+      for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+          const int d = dist[static_cast<std::size_t>(v) * w + u];
+          const bool fg = out.At(u, v) == 255;
+          if (d <= radius) {
+            ASSERT_TRUE(fg) << "trial " << trial << " radius " << radius << " at " << u << "," << v
+                            << " distance " << d;
+          }
+          if (d > radius + 2 * TileDilator::kTile) {
+            ASSERT_FALSE(fg) << "trial " << trial << " radius " << radius;
+          }
+          if (radius == 0) {
+            ASSERT_EQ(fg, d == 0);
+          }
+        }
+      }
+    }
+  }
+}
+
+TEST(CoveringRadiusPx, BoundsTheImageDisplacementOfNearbyPoints) {
+  geometry::CameraModel cam;
+  cam.width = 640;
+  cam.height = 480;
+  cam.K << 400, 0, 320, 0, 400, 240, 0, 0, 1;
+  const double rho = 0.05, min_depth = 1.0;
+  const int r = CoveringRadiusPx(cam, rho, min_depth);
+  ASSERT_GT(r, 0);
+  EXPECT_LT(r, 60);
+  // Random point pairs at depth >= min_depth within rho of each other, both in
+  // the image: their pixel distance never exceeds r.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> uu(0, cam.width), vv(0, cam.height), depth(1.0, 6.0),
+      dir(-1.0, 1.0);
+  int tested = 0;
+  double worst = 0.0;
+  while (tested < 20000) {
+    const Eigen::Vector3d ray((uu(rng) - 320) / 400, (vv(rng) - 240) / 400, 1.0);
+    const Eigen::Vector3d p = ray.normalized() * depth(rng);
+    Eigen::Vector3d offset(dir(rng), dir(rng), dir(rng));
+    if (offset.norm() < 1e-6) continue;
+    const Eigen::Vector3d q = p + offset.normalized() * rho;
+    if (q.z() <= 0) continue;
+    const Eigen::Vector2d a(400 * p.x() / p.z() + 320, 400 * p.y() / p.z() + 240);
+    const Eigen::Vector2d b(400 * q.x() / q.z() + 320, 400 * q.y() / q.z() + 240);
+    if (b.x() < 0 || b.x() > cam.width || b.y() < 0 || b.y() > cam.height) continue;
+    worst = std::max(worst, (a - b).norm());
+    ++tested;
+  }
+  EXPECT_LE(worst, r);
+  EXPECT_EQ(CoveringRadiusPx(cam, 0.0, 1.0), 0);
+  EXPECT_LT(CoveringRadiusPx(cam, 1.5, 1.0), 0);
+}
+
+}  // namespace
+}  // namespace hg::silhouette
