@@ -146,6 +146,25 @@ const Field<OctreeSettings> kOctreeFields[] = {
      .meaning = "Occupied components smaller than this volume (m^3) are dropped by the knowledge "
                 "filter; 0 turns the filter off (it frees space the cameras did not certify).",
      .limits = {0, kInf}},
+    {.key = "publish_depth",
+     .member = &OctreeSettings::publish_depth,
+     .meaning = "Resolution of the published occupancy grid: 2^publish_depth cells per axis, at "
+                "most depth. A published cell is occupied when any leaf inside it is.",
+     .limits = {1, 10}},
+};
+
+const Field<MotionConfig> kMotionFields[] = {
+    {.key = "max_speed_mps",
+     .member = &MotionConfig::max_speed_mps,
+     .meaning = "Fastest a person moves (m/s). Cameras capture at different instants; each older "
+                "frame's silhouette grows by the distance covered until the newest frame, whose "
+                "capture time stamps the occupancy. 0 assumes synchronised cameras.",
+     .limits = {0, 20}},
+    {.key = "min_camera_distance_m",
+     .member = &MotionConfig::min_camera_distance_m,
+     .meaning = "People are assumed to stay at least this far from every camera centre; nearer, "
+                "the skew compensation does not hold.",
+     .limits = {0.05, 100}},
 };
 
 const Field<TimingConfig> kTimingFields[] = {
@@ -215,6 +234,12 @@ const Field<SimSourceConfig> kSimFields[] = {
      .member = &SimSourceConfig::camera,
      .meaning = "Camera of the scene whose frames are rendered.",
      .default_doc = "the camera's name"},
+    {.key = "stop_after_s",
+     .member = &SimSourceConfig::stop_after_s,
+     .meaning = "Fault injection: the camera stops delivering frames this many seconds after "
+                "start, as one whose cable is pulled.",
+     .limits = {0, kInf},
+     .default_doc = "never"},
 };
 
 const Field<ReplaySourceConfig> kReplayFields[] = {
@@ -348,6 +373,7 @@ const Section kSections[] = {
     {"octree", "map", false, "Octree resolution and filtering."},
     {"timing", "map", false, "Fusion rate, deadline and camera timeout."},
     {"threads", "map", false, "Thread counts."},
+    {"motion", "map", false, "How fast people move (capture-skew compensation)."},
     {"cameras", "list", true, "The cameras: calibration and source of each."},
     {"background", "map", false, "Background model of the silhouette stage."},
     {"obstacles", "list", false, "Static obstacle meshes."},
@@ -928,11 +954,31 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   }
 
   ReadSection<CellConfig>(r, sections, "cell", kCellFields, &config.cell);
+  const std::size_t errors_before_octree = r.error_count();
   ReadSection<OctreeSettings>(r, sections, "octree", kOctreeFields, &config.octree);
+  if (r.error_count() == errors_before_octree &&
+      config.octree.publish_depth > config.octree.depth) {
+    int line = 0;
+    if (const auto it = sections.find("octree"); it != sections.end() && it->second.value.IsMap()) {
+      for (const auto& kv : it->second.value) {
+        if (kv.first.IsScalar() && kv.first.Scalar() == "publish_depth") {
+          line = common::YamlLine(kv.first);
+        }
+      }
+    }
+    if (line == 0) {
+      config.octree.publish_depth = config.octree.depth;  // The default, for a shallow octree.
+    } else {
+      r.Error(line, "octree.publish_depth",
+              "must be <= octree.depth = " + std::to_string(config.octree.depth) + " (got " +
+                  std::to_string(config.octree.publish_depth) + ")");
+    }
+  }
   const std::size_t errors_before_timing = r.error_count();
   ReadSection<TimingConfig>(r, sections, "timing", kTimingFields, &config.timing);
   const bool timing_read = r.error_count() == errors_before_timing;
   ReadSection<ThreadsConfig>(r, sections, "threads", kThreadsFields, &config.threads);
+  ReadSection<MotionConfig>(r, sections, "motion", kMotionFields, &config.motion);
   ReadSection<BackgroundConfig>(r, sections, "background", kBackgroundFields, &config.background);
   ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);
   ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
@@ -1042,6 +1088,8 @@ std::vector<DocSection> ConfigDocSections() {
   out.push_back(
       {"timing", "timing", "Fusion rate and deadlines.", Rows<TimingConfig>(kTimingFields)});
   out.push_back({"threads", "threads", "Thread counts.", Rows<ThreadsConfig>(kThreadsFields)});
+  out.push_back({"motion", "motion", "How fast people move: the capture-skew compensation.",
+                 Rows<MotionConfig>(kMotionFields)});
   {
     DocSection cams{"cameras",
                     "cameras[]",

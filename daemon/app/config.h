@@ -27,6 +27,14 @@ struct OctreeSettings {
   int depth = 10;                    ///< Finest cells are bounds / 2^depth.
   int boundary_coarsening = 3;       ///< Geometry-only boundaries stop this many levels early.
   double knowledge_filter_m3 = 0.0;  ///< Drop occupied components below this volume; 0 = off.
+  int publish_depth = 7;             ///< Published grid: 2^publish_depth cells per axis (<= depth).
+};
+
+/// How far people can move: the capture-skew compensation grows each older
+/// frame's silhouette by the distance a person covers until the newest frame.
+struct MotionConfig {
+  double max_speed_mps = 2.0;          ///< Fastest a person moves (ISO 13855 walking: 1.6 to 2.0).
+  double min_camera_distance_m = 1.0;  ///< People stay at least this far from every camera.
 };
 
 /// Fusion timing.
@@ -64,6 +72,9 @@ enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError };
 struct SimSourceConfig {
   std::string scene;   ///< Scene file, resolved against the config file's folder.
   std::string camera;  ///< Camera of that scene; the loader fills in the camera's own name.
+  /// Fault injection for demos and tests: the camera stops delivering frames
+  /// this many seconds after start, as a camera whose cable is pulled.
+  std::optional<double> stop_after_s;
 };
 
 /// Frames played back from a recording.
@@ -143,6 +154,7 @@ struct Config {
   OctreeSettings octree;
   TimingConfig timing;
   ThreadsConfig threads;
+  MotionConfig motion;
   std::vector<CameraConfig> cameras;
   BackgroundConfig background;
   std::vector<ObstacleConfig> obstacles;

@@ -5,8 +5,11 @@
 #include <map>
 #include <thread>
 
+#include "app/service.h"
+#include "capture/replay_source.h"
 #include "capture/sim_source.h"
 #include "common/config_error.h"
+#include "common/heartbeat.h"
 #include "geometry/mesh.h"
 #include "pipeline/pipeline.h"
 #include "sim/scene.h"
@@ -35,19 +38,36 @@ const char* StateName(pipeline::CameraState s) {
   return "?";
 }
 
-void PrintHealth(const pipeline::OccupancySnapshot& s) {
+// One line of health: the periodic log line and systemd's STATUS=.
+std::string HealthLine(const pipeline::OccupancySnapshot& s) {
   const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
-  std::fprintf(stderr,
-               "hullguardd: cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms "
-               "cycle %.1f ms deadline misses %llu |",
-               static_cast<unsigned long long>(s.sequence), s.health.degraded ? "DEGRADED" : "ok",
-               s.complete ? "" : " (aborted)", cell * static_cast<double>(s.occupied.size()),
-               cell * static_cast<double>(s.occluded.size()), s.health.octree_ms, s.health.cycle_ms,
-               static_cast<unsigned long long>(s.health.deadline_misses));
+  char head[256];
+  std::snprintf(head, sizeof(head),
+                "cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms cycle %.1f ms "
+                "skew %.1f ms deadline misses %llu |",
+                static_cast<unsigned long long>(s.sequence), s.health.degraded ? "DEGRADED" : "ok",
+                s.complete ? "" : " (aborted)",
+                cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
+                cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occluded)),
+                s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
+                static_cast<unsigned long long>(s.health.deadline_misses));
+  std::string line = head;
   for (const pipeline::CameraHealth& c : s.health.cameras) {
-    std::fprintf(stderr, " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
+    char cam[128];
+    std::snprintf(cam, sizeof(cam), " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
+    line += cam;
+    if (c.corrupt > 0) line += std::string(" corrupt ").append(std::to_string(c.corrupt));
   }
-  std::fprintf(stderr, "\n");
+  return line;
+}
+
+silhouette::BackgroundModelOptions BackgroundOptions(const BackgroundConfig& b) {
+  silhouette::BackgroundModelOptions o;
+  o.learn_frames = b.learn_frames;
+  o.min_threshold = b.threshold;
+  o.adapt_rate = b.adapt_rate;
+  o.shadows_are_foreground = b.shadows_are_foreground;
+  return o;
 }
 
 }  // namespace
@@ -60,7 +80,10 @@ int RunPipeline(const Config& config, double duration_s) {
   options.octree_threads = config.threads.octree;
   options.rate_hz = config.timing.rate_hz;
   options.deadline_ms = config.timing.deadline_ms;
-  options.publish_depth = std::min(config.octree.depth, 7);
+  options.publish_depth = config.octree.publish_depth;
+  options.max_speed_mps = config.motion.max_speed_mps;
+  options.min_camera_distance_m = config.motion.min_camera_distance_m;
+  options.background = BackgroundOptions(config.background);
 
   std::vector<geometry::TriangleMesh> obstacles;
   for (const ObstacleConfig& o : config.obstacles) obstacles.push_back(geometry::LoadMesh(o.file));
@@ -70,11 +93,22 @@ int RunPipeline(const Config& config, double duration_s) {
   const capture::SimClock sim_clock = capture::SimClock::Now();
   std::vector<pipeline::PipelineCamera> cameras;
   for (const CameraConfig& c : config.cameras) {
+    if (const auto* replay = std::get_if<ReplaySourceConfig>(&c.source)) {
+      if (!replay->realtime) {
+        throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
+                                  "': source.realtime: false needs a lock-step consumer; the "
+                                  "daemon's fixed-rate pipeline replays in real time only");
+      }
+      auto source = std::make_unique<capture::ReplaySource>(
+          capture::ReadRecordingCamera(replay->directory, replay->camera), sim_clock);
+      cameras.push_back({c.model, std::move(source), c.timeout_ms});
+      continue;
+    }
     const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
     if (sim_source == nullptr) {
       throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
                                 "': source type '" + ToString(TypeOf(c.source)) +
-                                "' is not available in this build yet (only 'sim')");
+                                "' is not available in this build yet (sim and replay are)");
     }
     auto& scene = scenes[sim_source->scene];
     if (!scene) scene = std::make_shared<const sim::Scene>(sim::LoadScene(sim_source->scene));
@@ -83,9 +117,9 @@ int RunPipeline(const Config& config, double duration_s) {
       if (scene->cameras[i].model.name == sim_source->camera) index = static_cast<int>(i);
     }
     // The loader checked that the scene defines the camera.
-    cameras.push_back(
-        {c.model, std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, sim_clock),
-         c.timeout_ms});
+    auto source = std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, sim_clock);
+    if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
+    cameras.push_back({c.model, std::move(source), c.timeout_ms});
   }
 
   pipeline::Pipeline::Consumer consumer;
@@ -102,28 +136,50 @@ int RunPipeline(const Config& config, double duration_s) {
     std::fprintf(stderr, "hullguardd: built without Cyclone DDS: nothing is published\n");
   }
 #endif
-  pipeline::Pipeline pipeline(options, std::move(cameras), obstacles, consumer);
+  common::Heartbeats heartbeats;
+  pipeline::Pipeline pipeline(options, std::move(cameras), obstacles, consumer, &heartbeats);
+  const int main_heartbeat = heartbeats.Register("main");
+  // systemd (Type=notify): READY=1 once the cameras are open and the first
+  // cycle is published; WATCHDOG=1 only while every stage's heartbeat moves.
+  const ServiceNotifier notifier;
+  ServiceWatchdog watchdog(heartbeats, notifier);
   std::signal(SIGTERM, OnSignal);
   std::signal(SIGINT, OnSignal);
   pipeline.Start();
+  watchdog.Start();
   std::fprintf(stderr, "hullguardd: running %s\n", Summary(config).c_str());
-  if (!scenes.empty()) {
-    // Lets a test or a viewer evaluate the scene's ground truth for a stamp.
-    std::fprintf(stderr, "hullguardd: sim scene time 0 is %lld ns (CLOCK_REALTIME)\n",
-                 static_cast<long long>(sim_clock.epoch_ns));
-  }
+  // Lets a test or a viewer relate stamps to scene or recording time.
+  std::fprintf(stderr, "hullguardd: sim/replay time 0 is %lld ns (CLOCK_REALTIME)\n",
+               static_cast<long long>(sim_clock.epoch_ns));
+  bool ready = false;
   auto next_report = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   while (!g_stop.load()) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    heartbeats.Beat(main_heartbeat);
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
     const auto now = std::chrono::steady_clock::now();
     if (duration_s > 0 && now - start >= std::chrono::duration<double>(duration_s)) break;
+    if (!ready) {
+      if (const auto s = pipeline.Latest()) {
+        notifier.Ready();
+        watchdog.SetStatus(HealthLine(*s));
+        ready = true;
+      }
+    }
     if (now >= next_report) {
       next_report += std::chrono::seconds(1);
-      if (const auto s = pipeline.Latest()) PrintHealth(*s);
+      if (const auto s = pipeline.Latest()) {
+        const std::string line = HealthLine(*s);
+        std::fprintf(stderr, "hullguardd: %s\n", line.c_str());
+        watchdog.SetStatus(line);
+      }
     }
   }
+  notifier.Stopping();
+  watchdog.Stop();
   pipeline.Stop();
-  if (const auto s = pipeline.Latest()) PrintHealth(*s);
+  if (const auto s = pipeline.Latest()) {
+    std::fprintf(stderr, "hullguardd: %s\n", HealthLine(*s).c_str());
+  }
   std::fprintf(stderr, "hullguardd: stopped\n");
   return 0;
 }

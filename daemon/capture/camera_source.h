@@ -10,9 +10,20 @@
 
 namespace hg::capture {
 
-/// A silhouette frame as a source delivers it (lens-distorted, camera-sized).
-struct MaskFrame {
-  common::ImageU8 mask;       ///< Foreground iff > 127.
+/// What a frame holds: a silhouette already (simulated cameras, mask
+/// recordings) or an image for the background model.
+enum class FrameKind : std::uint8_t {
+  kMask,  ///< `grey` is a silhouette: foreground iff > 127.
+  kMono,  ///< `grey` is a Mono8 image.
+  kRgb,   ///< `rgb` is an RGB image.
+};
+
+/// A frame as a source delivers it (lens-distorted, camera-sized). Sources
+/// refill the same Frame, so its buffers are reused from frame to frame.
+struct Frame {
+  FrameKind kind = FrameKind::kMask;
+  common::ImageU8 grey;       ///< kMask and kMono.
+  common::ImageRgb8 rgb;      ///< kRgb.
   std::int64_t stamp_ns = 0;  ///< Capture time, CLOCK_REALTIME.
   std::uint64_t index = 0;    ///< Frame counter of the source.
 };
@@ -24,8 +35,10 @@ class CameraSource {
   virtual ~CameraSource() = default;
   /// Waits for the next frame up to `timeout` and fills *frame, reusing its
   /// buffers. False on timeout, after Stop(), or when the camera fails.
-  virtual bool Next(MaskFrame* frame, std::chrono::milliseconds timeout) = 0;
+  virtual bool Next(Frame* frame, std::chrono::milliseconds timeout) = 0;
   virtual void Stop() = 0;
+  /// Frames the source received but could not use (unreadable, truncated).
+  [[nodiscard]] virtual std::uint64_t corrupt_frames() const { return 0; }
 };
 
 }  // namespace hg::capture

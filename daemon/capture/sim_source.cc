@@ -29,18 +29,18 @@ SimSource::SimSource(std::shared_ptr<const sim::Scene> scene, int camera_index, 
   next_ = clock_.start + std::chrono::nanoseconds(static_cast<std::int64_t>(offset_s * 1e9));
 }
 
-bool SimSource::Next(MaskFrame* frame, std::chrono::milliseconds timeout) {
+bool SimSource::Next(Frame* frame, std::chrono::milliseconds timeout) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point give_up = Clock::now() + timeout;
   for (;;) {
     if (stopped_.load()) return false;
     const Clock::time_point now = Clock::now();
-    if (now >= next_ && !paused_.load()) break;
+    const bool paused = paused_.load() || next_ - clock_.start >= stop_after_;
+    if (now >= next_ && !paused) break;
     if (now >= give_up) return false;
     // Sleep in short steps so Stop() and SetPaused() take effect soon.
-    const Clock::time_point wake =
-        std::min({paused_.load() ? now + std::chrono::milliseconds(5) : next_, give_up,
-                  now + std::chrono::milliseconds(20)});
+    const Clock::time_point wake = std::min({paused ? now + std::chrono::milliseconds(5) : next_,
+                                             give_up, now + std::chrono::milliseconds(20)});
     std::this_thread::sleep_until(wake);
   }
   // The newest capture instant that has passed; earlier ones are skipped.
@@ -53,7 +53,8 @@ bool SimSource::Next(MaskFrame* frame, std::chrono::milliseconds timeout) {
   for (std::size_t p = 0; p < people_.size(); ++p) {
     people_[p] = sim::EvaluatePerson(scene_->people[p], t);
   }
-  renderer_.Render(people_, &frame->mask);
+  frame->kind = FrameKind::kMask;
+  renderer_.Render(people_, &frame->grey);
   frame->stamp_ns = clock_.epoch_ns + since_start.count();
   frame->index = index_++;
   return true;

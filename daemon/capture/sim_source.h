@@ -34,12 +34,16 @@ class SimSource : public CameraSource {
   SimSource(std::shared_ptr<const sim::Scene> scene, int camera_index, double rate_hz,
             SimClock clock);
 
-  bool Next(MaskFrame* frame, std::chrono::milliseconds timeout) override;
+  bool Next(Frame* frame, std::chrono::milliseconds timeout) override;
   void Stop() override { stopped_.store(true); }
 
   /// While paused the camera delivers nothing, as a camera whose cable was
   /// pulled (tests and demos of a lost camera).
   void SetPaused(bool paused) { paused_.store(paused); }
+
+  /// Fault injection: no frame is captured after this many seconds of scene
+  /// time (set before the capture thread starts).
+  void SetStopAfter(double seconds) { stop_after_ = std::chrono::duration<double>(seconds); }
 
  private:
   std::shared_ptr<const sim::Scene> scene_;
@@ -52,6 +56,7 @@ class SimSource : public CameraSource {
   std::uint64_t index_ = 0;
   std::atomic<bool> stopped_{false};
   std::atomic<bool> paused_{false};
+  std::chrono::duration<double> stop_after_{std::chrono::duration<double>::max()};
 };
 
 }  // namespace hg::capture

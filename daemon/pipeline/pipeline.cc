@@ -25,8 +25,9 @@ double MsSince(SteadyClock::time_point t) {
 }  // namespace
 
 Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> cameras,
-                   const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer)
-    : options_(options), consumer_(std::move(consumer)) {
+                   const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer,
+                   common::Heartbeats* heartbeats)
+    : options_(options), consumer_(std::move(consumer)), heartbeats_(heartbeats) {
   options_.publish_depth = std::clamp(options_.publish_depth, 1, std::min(options_.depth, 10));
   std::vector<octree::CameraView> views;
   for (PipelineCamera& c : cameras) {
@@ -35,8 +36,12 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
       runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
     }
     views.emplace_back(c.model.Pinhole(), obstacles);
+    if (heartbeats_ != nullptr) {
+      runtime->heartbeat = heartbeats_->Register(std::string("capture ").append(c.model.name));
+    }
     cameras_.push_back(std::move(runtime));
   }
+  if (heartbeats_ != nullptr) fusion_heartbeat_ = heartbeats_->Register("fusion");
   quadtree_ptrs_.resize(cameras_.size(), nullptr);
   tree_ = std::make_unique<octree::Octree>(
       octree::OctreeConfig{options_.bounds, options_.depth, options_.octree_threads,
@@ -68,16 +73,35 @@ void Pipeline::Stop() {
 
 void Pipeline::CaptureLoop(int camera) {
   CameraRuntime& c = *cameras_[camera];
-  capture::MaskFrame frame;
+  capture::Frame frame;
+  common::ImageU8 foreground;  // Background model output (image sources only).
   while (!stop_.load(std::memory_order_relaxed)) {
+    if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
     if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
+    const common::ImageU8* mask = &frame.grey;
+    if (frame.kind != capture::FrameKind::kMask) {
+      if (!c.background) {
+        c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
+                                                                     options_.background);
+      }
+      if (frame.kind == capture::FrameKind::kRgb) {
+        c.background->Apply(frame.rgb, &foreground);
+      } else {
+        c.background->Apply(frame.grey, &foreground);
+      }
+      mask = &foreground;
+    }
+    if (mask->width != c.model.width || mask->height != c.model.height) {
+      c.corrupt.fetch_add(1, std::memory_order_relaxed);  // Not this camera's size.
+      continue;
+    }
     Slot& slot = c.slot.BeginWrite();
     if (c.undistorter) {
-      c.undistorter->Apply(frame.mask.View(), 127, &slot.mask);
+      c.undistorter->Apply(mask->View(), 127, &slot.mask);
     } else {
-      slot.mask.width = frame.mask.width;
-      slot.mask.height = frame.mask.height;
-      slot.mask.pixels.assign(frame.mask.pixels.begin(), frame.mask.pixels.end());
+      slot.mask.width = mask->width;
+      slot.mask.height = mask->height;
+      slot.mask.pixels.assign(mask->pixels.begin(), mask->pixels.end());
     }
     slot.stamp_ns = frame.stamp_ns;
     c.slot.Publish();
@@ -123,20 +147,43 @@ void Pipeline::FillCells(OccupancySnapshot* snapshot) {
   });
   snapshot->occupied.clear();
   snapshot->occluded.clear();
+  // Runs along x: consecutive set bits of a row (rows are n bits long and
+  // start at multiples of n, so runs split only at row ends).
+  struct Emitter {
+    std::vector<GridRun>* out;
+    std::size_t end = SIZE_MAX;  // Index after the last cell of the open run.
+  };
+  auto emit = [n](std::uint64_t word, std::size_t base, Emitter* e) {
+    while (word != 0) {
+      const int s = std::countr_zero(word);
+      const int len = std::countr_one(word >> s);
+      word = s + len >= 64 ? 0 : word & ~(((std::uint64_t{1} << len) - 1) << s);
+      std::size_t i = base + static_cast<std::size_t>(s);
+      std::size_t left = static_cast<std::size_t>(len);
+      while (left > 0) {
+        const std::size_t x = i % n;
+        const std::size_t take = std::min<std::size_t>(left, n - x);
+        if (e->end == i && x != 0) {
+          e->out->back().length = static_cast<std::uint16_t>(e->out->back().length + take);
+        } else {
+          const std::size_t row = i / n;
+          e->out->push_back({static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(row % n),
+                             static_cast<std::uint16_t>(row / n),
+                             static_cast<std::uint16_t>(take)});
+        }
+        i += take;
+        left -= take;
+        e->end = i;
+      }
+    }
+  };
+  Emitter occupied{&snapshot->occupied};
+  Emitter occluded{&snapshot->occluded};
   for (std::size_t w = 0; w < occupied_bits_.size(); ++w) {
     // Occupied wins over occluded where a published cell holds both.
-    std::uint64_t occ = occupied_bits_[w];
-    std::uint64_t hid = occluded_bits_[w] & ~occ;
-    auto emit = [&](std::uint64_t word, std::vector<GridCell>* out) {
-      while (word != 0) {
-        const std::size_t i = w * 64 + static_cast<std::size_t>(std::countr_zero(word));
-        word &= word - 1;
-        out->push_back({static_cast<std::uint16_t>(i % n), static_cast<std::uint16_t>((i / n) % n),
-                        static_cast<std::uint16_t>(i / (static_cast<std::size_t>(n) * n))});
-      }
-    };
-    emit(occ, &snapshot->occupied);
-    emit(hid, &snapshot->occluded);
+    const std::uint64_t occ = occupied_bits_[w];
+    emit(occ, w * 64, &occupied);
+    emit(occluded_bits_[w] & ~occ, w * 64, &occluded);
   }
 }
 
@@ -145,6 +192,7 @@ void Pipeline::FusionLoop() {
   SteadyClock::time_point next = SteadyClock::now();
   SteadyClock::time_point last_second = next;
   while (!stop_.load(std::memory_order_relaxed)) {
+    if (heartbeats_ != nullptr) heartbeats_->Beat(fusion_heartbeat_);
     std::this_thread::sleep_until(next);
     next += period;
     const SteadyClock::time_point cycle_start = SteadyClock::now();
@@ -184,6 +232,7 @@ void Pipeline::FusionLoop() {
       h.frame_age_ms = age_ms;
       h.frames = frames;
       h.drops = c.slot.drops();
+      h.corrupt = c.corrupt.load(std::memory_order_relaxed) + c.source->corrupt_frames();
       health.degraded = health.degraded || !live;
     }
     // Pass 2: quadtrees, each mask dilated for its camera's lag behind the

@@ -10,11 +10,13 @@
 #include <vector>
 
 #include "capture/camera_source.h"
+#include "common/heartbeat.h"
 #include "common/latest_value.h"
 #include "geometry/camera.h"
 #include "geometry/mesh.h"
 #include "octree/octree.h"
 #include "pipeline/snapshot.h"
+#include "silhouette/background_model.h"
 #include "silhouette/quadtree.h"
 #include "silhouette/tile_dilation.h"
 #include "silhouette/undistort.h"
@@ -39,6 +41,8 @@ struct PipelineOptions {
   /// ISO 13855 for a walking person.
   double max_speed_mps = 2.0;
   double min_camera_distance_m = 1.0;
+  /// Turns image frames (colour or Mono8 sources) into silhouettes.
+  silhouette::BackgroundModelOptions background;
 };
 
 struct PipelineCamera {
@@ -70,8 +74,12 @@ class Pipeline {
  public:
   using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;
 
+  /// `heartbeats` (optional, must outlive the pipeline) gets one stage per
+  /// capture thread ("capture <camera>") and one for fusion ("fusion"), each
+  /// beaten every loop iteration.
   Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> cameras,
-           const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer);
+           const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer,
+           common::Heartbeats* heartbeats = nullptr);
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
@@ -97,6 +105,9 @@ class Pipeline {
     int timeout_ms = 200;
     common::LatestValue<Slot> slot;
     std::atomic<std::uint64_t> frames{0};
+    std::atomic<std::uint64_t> corrupt{0};                    // Frames of the wrong size.
+    int heartbeat = -1;                                       // Id in heartbeats_, if any.
+    std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
     silhouette::TileDilator dilator;
@@ -129,6 +140,8 @@ class Pipeline {
   std::vector<std::unique_ptr<CameraRuntime>> cameras_;
   std::unique_ptr<octree::Octree> tree_;
   Consumer consumer_;
+  common::Heartbeats* heartbeats_ = nullptr;
+  int fusion_heartbeat_ = -1;
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
   std::vector<std::shared_ptr<OccupancySnapshot>> pool_;
   std::vector<std::uint64_t> occupied_bits_, occluded_bits_;  // Publishing grid bitsets.

@@ -39,11 +39,14 @@ struct PipelineHealth {
   std::uint64_t cycles = 0;
 };
 
-/// A cell of the published grid: 2^depth cells per axis over the bounds.
-struct GridCell {
+/// Cells (x .. x + length - 1, y, z) of the published grid (2^depth cells
+/// per axis over the bounds): a run along x. Runs keep a sample small where
+/// occupied or occluded space is large (the space above the cameras, say).
+struct GridRun {
   std::uint16_t x = 0;
   std::uint16_t y = 0;
   std::uint16_t z = 0;
+  std::uint16_t length = 1;
 };
 
 /// Occupancy of one cycle at the publishing resolution. Conservative: a cell
@@ -57,9 +60,16 @@ struct OccupancySnapshot {
   std::int64_t stamp_ns = 0;
   bool complete = true;  ///< False when the update was aborted (still conservative).
   common::Box3 bounds;
-  int depth = 0;                   ///< Publishing grid: 2^depth cells per axis.
-  std::vector<GridCell> occupied;  ///< Cells that may hold a person (seen as foreground).
-  std::vector<GridCell> occluded;  ///< Cells no camera sees (and not occupied).
+  int depth = 0;                  ///< Publishing grid: 2^depth cells per axis.
+  std::vector<GridRun> occupied;  ///< Cells that may hold a person (seen as foreground).
+  std::vector<GridRun> occluded;  ///< Cells no camera sees (and not occupied).
+
+  /// Number of cells the runs cover.
+  [[nodiscard]] static std::size_t Cells(const std::vector<GridRun>& runs) {
+    std::size_t n = 0;
+    for (const GridRun& r : runs) n += r.length;
+    return n;
+  }
   PipelineHealth health;
 };
 

@@ -57,11 +57,11 @@ void Grow(Seq& seq, std::vector<T>& storage, std::size_t n) {
   seq._release = false;  // The vector owns the buffer, not Cyclone DDS.
 }
 
-void FillCells(const std::vector<pipeline::GridCell>& cells, dds_sequence_hullguard_GridCell& seq,
-               std::vector<hullguard_GridCell>& storage) {
-  Grow(seq, storage, cells.size());
-  for (std::size_t i = 0; i < cells.size(); ++i) {
-    storage[i] = hullguard_GridCell{cells[i].x, cells[i].y, cells[i].z};
+void FillCells(const std::vector<pipeline::GridRun>& runs, dds_sequence_hullguard_GridRun& seq,
+               std::vector<hullguard_GridRun>& storage) {
+  Grow(seq, storage, runs.size());
+  for (std::size_t i = 0; i < runs.size(); ++i) {
+    storage[i] = hullguard_GridRun{runs[i].x, runs[i].y, runs[i].z, runs[i].length};
   }
 }
 
@@ -70,8 +70,8 @@ void FillCells(const std::vector<pipeline::GridCell>& cells, dds_sequence_hullgu
 struct DdsPublisher::Samples {
   hullguard_Occupancy occupancy{};
   hullguard_Status status{};
-  std::vector<hullguard_GridCell> occupied;
-  std::vector<hullguard_GridCell> occluded;
+  std::vector<hullguard_GridRun> occupied;
+  std::vector<hullguard_GridRun> occluded;
   std::vector<hullguard_CameraStatus> cameras;
 };
 

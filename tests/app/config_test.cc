@@ -24,7 +24,7 @@ const std::string kConfigDir = kSourceDir + "/config";
 /// non-default value. Line numbers matter to the tests below.
 const char* const kFull = R"(cell:
   bounds: {min: [-1, -2, 0], max: [3, 4, 2.5]}
-octree: {depth: 8, boundary_coarsening: 2, knowledge_filter_m3: 0.002}
+octree: {depth: 8, boundary_coarsening: 2, knowledge_filter_m3: 0.002, publish_depth: 6}
 timing: {rate_hz: 20, deadline_ms: 40, camera_timeout_ms: 150}
 threads: {octree: 4, silhouette_workers: 3}
 cameras:
@@ -70,6 +70,7 @@ obstacles:
   - file: demo_cell/obstacles.obj
 dds: {domain_id: 7, topic_prefix: cell7, enabled: false}
 logging: {level: debug, journald: true}
+motion: {max_speed_mps: 1.6, min_camera_distance_m: 1.5}
 )";
 
 Config Parse(const std::string& text) { return ParseConfig(text, "t.yaml", kConfigDir); }
@@ -124,6 +125,9 @@ TEST(ConfigTest, DefaultsOfAMinimalFile) {
   EXPECT_EQ(c.octree.depth, 10);
   EXPECT_EQ(c.octree.boundary_coarsening, 3);
   EXPECT_EQ(c.octree.knowledge_filter_m3, 0.0);
+  EXPECT_EQ(c.octree.publish_depth, 7);
+  EXPECT_EQ(c.motion.max_speed_mps, 2.0);
+  EXPECT_EQ(c.motion.min_camera_distance_m, 1.0);
   EXPECT_EQ(c.timing.rate_hz, 30.0);
   EXPECT_EQ(c.timing.deadline_ms, 25.0);
   EXPECT_EQ(c.timing.camera_timeout_ms, 200);
@@ -211,6 +215,9 @@ TEST(ConfigTest, EverySectionReadsBack) {
   EXPECT_EQ(v4l2.frame_rate_hz, 15.0);
   EXPECT_EQ(v4l2.exposure, 120);
 
+  EXPECT_EQ(c.octree.publish_depth, 6);
+  EXPECT_EQ(c.motion.max_speed_mps, 1.6);
+  EXPECT_EQ(c.motion.min_camera_distance_m, 1.5);
   EXPECT_EQ(Summary(c), "4 cameras (1 sim, 1 replay, 1 aravis, 1 v4l2), depth 8, 20 Hz");
 }
 
@@ -289,6 +296,10 @@ const Mistake kMistakes[] = {
     {"domain_id: 7", "domain_id: 233", 47, "dds.domain_id", "must be in 0 .. 232"},
     {"level: debug", "level: loud", 48, "logging.level", "unknown value 'loud'"},
     {"logging:", "loging:", 48, "", "unknown key 'loging'"},
+    {"publish_depth: 6", "publish_depth: 9", 3, "octree.publish_depth", "<= octree.depth = 8"},
+    {"max_speed_mps: 1.6", "max_speed_mps: -1", 49, "motion.max_speed_mps", "must be in 0 .. 20"},
+    {"min_camera_distance_m: 1.5", "min_camera_dist: 1.5", 49, "motion",
+     "unknown key 'min_camera_dist'"},
 };
 
 TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {

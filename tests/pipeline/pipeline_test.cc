@@ -4,6 +4,8 @@
 #include "pipeline/pipeline.h"
 
 #include <chrono>
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <thread>
 
@@ -12,8 +14,12 @@
 #include <Eigen/Geometry>
 #include "scene/demo_cell.h"
 
+#include "capture/replay_source.h"
 #include "capture/sim_source.h"
+#include "common/config_error.h"
 #include "common/latest_value.h"
+#include "silhouette/mask_io.h"
+#include "support/sim_bodies.h"
 
 namespace hg::pipeline {
 namespace {
@@ -148,34 +154,8 @@ struct Rig {
   // in a cell listed neither occupied nor occluded.
   int PointsReportedFree(const OccupancySnapshot& s) const {
     const double t = static_cast<double>(s.stamp_ns - clock.epoch_ns) * 1e-9;
-    const int n = 1 << s.depth;
-    std::vector<std::uint8_t> listed(static_cast<std::size_t>(n) * n * n, 0);
-    for (const auto* cells : {&s.occupied, &s.occluded}) {
-      for (const GridCell& c : *cells)
-        listed[c.x + n * (c.y + static_cast<std::size_t>(n) * c.z)] = 1;
-    }
-    std::mt19937_64 rng(3);
-    std::uniform_real_distribution<double> u01(0.0, 1.0);
-    int free = 0;
-    for (const sim::Person& person : scene->people) {
-      const sim::BodyState body = sim::EvaluatePerson(person, t);
-      for (const sim::BodyCapsule& cap : body.parts) {
-        for (int i = 0; i < 200; ++i) {
-          // A point of the capsule's segment pushed out by up to the radius.
-          const Eigen::Vector3d dir =
-              Eigen::Vector3d(u01(rng) - 0.5, u01(rng) - 0.5, u01(rng) - 0.5);
-          const Eigen::Vector3d p =
-              cap.a_W + u01(rng) * (cap.b_W - cap.a_W) +
-              (dir.norm() > 0 ? dir.normalized() : dir) * cap.radius_m * u01(rng);
-          const Eigen::Vector3d rel = (p - s.bounds.min).cwiseQuotient(s.bounds.Size()) * n;
-          const int x = static_cast<int>(rel.x()), y = static_cast<int>(rel.y()),
-                    z = static_cast<int>(rel.z());
-          if (x < 0 || y < 0 || z < 0 || x >= n || y >= n || z >= n) continue;
-          free += listed[x + n * (y + static_cast<std::size_t>(n) * z)] == 0;
-        }
-      }
-    }
-    return free;
+    return testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, t, 200, 3), s.bounds.min,
+                                          s.bounds.max, s.depth, {&s.occupied, &s.occluded});
   }
 };
 
@@ -188,7 +168,7 @@ TEST(PipelineTest, LiveSnapshotsKeepPeopleOccupiedAndALostCameraOnlyGrowsOccupan
   EXPECT_EQ(rig.PointsReportedFree(*healthy), 0);
   EXPECT_EQ(healthy->health.cameras.size(), 3U);
   for (const CameraHealth& h : healthy->health.cameras) EXPECT_EQ(h.state, CameraState::kOk);
-  const std::size_t occupied_before = healthy->occupied.size();
+  const std::size_t occupied_before = OccupancySnapshot::Cells(healthy->occupied);
 
   rig.sources[2]->SetPaused(true);  // The camera's cable is pulled.
   auto degraded = rig.WaitFor([](const OccupancySnapshot& s) {
@@ -196,8 +176,11 @@ TEST(PipelineTest, LiveSnapshotsKeepPeopleOccupiedAndALostCameraOnlyGrowsOccupan
   });
   ASSERT_NE(degraded, nullptr) << "status did not turn degraded";
   EXPECT_EQ(rig.PointsReportedFree(*degraded), 0);
-  EXPECT_GE(degraded->occupied.size() + degraded->occluded.size(), occupied_before);
-  EXPECT_GT(degraded->occupied.size(), occupied_before) << "two cameras carve less than three";
+  EXPECT_GE(
+      OccupancySnapshot::Cells(degraded->occupied) + OccupancySnapshot::Cells(degraded->occluded),
+      occupied_before);
+  EXPECT_GT(OccupancySnapshot::Cells(degraded->occupied), occupied_before)
+      << "two cameras carve less than three";
 
   rig.sources[2]->SetPaused(false);
   auto recovered = rig.WaitFor([&](const OccupancySnapshot& s) {
@@ -237,6 +220,50 @@ TEST(PipelineTest, CaptureSkewIsCompensated) {
   EXPECT_EQ(count_free(2.0, &skew_ms), 0);
   EXPECT_GT(skew_ms, 10.0) << "cameras were expected to capture at different instants";
   EXPECT_GT(count_free(0.0, &skew_ms), 0);
+}
+
+// A recording folder in the synth layout: frames play at their capture times,
+// stamped with them; a corrupt frame is counted and skipped; after the last
+// frame the camera falls silent.
+TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / ("hg_replay_" + std::to_string(getpid()));
+  fs::create_directories(dir / "masks" / "cam0");
+  std::ofstream(dir / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 5, masks: true, "
+         "colour: false}\ncameras:\n  - {name: cam0, time_offset_s: 0.01}\n";
+  for (int i = 0; i < 5; ++i) {
+    char name[16];
+    std::snprintf(name, sizeof(name), "%06d.png", i);
+    if (i == 2) {
+      std::ofstream(dir / "masks" / "cam0" / name) << "not a png";
+      continue;
+    }
+    common::ImageU8 mask(64, 48, 0);
+    for (int p = 0; p <= i; ++p) mask.pixels[static_cast<std::size_t>(p)] = 255;
+    silhouette::WriteGreyImage((dir / "masks" / "cam0" / name).string(), mask);
+  }
+  EXPECT_THROW((void)capture::ReadRecordingCamera(dir.string(), "cam9"), common::ConfigError);
+
+  const capture::SimClock clock = capture::SimClock::Now();
+  capture::ReplaySource source(capture::ReadRecordingCamera(dir.string(), "cam0"), clock);
+  capture::Frame frame;
+  std::vector<std::uint64_t> indices;
+  const auto give_up = std::chrono::steady_clock::now() + 5s;
+  while (indices.size() < 4 && std::chrono::steady_clock::now() < give_up) {
+    if (!source.Next(&frame, 100ms)) continue;
+    ASSERT_EQ(frame.kind, capture::FrameKind::kMask);
+    ASSERT_EQ(frame.grey.width, 64);
+    const auto foreground = std::count(frame.grey.pixels.begin(), frame.grey.pixels.end(), 255);
+    EXPECT_EQ(foreground, static_cast<long>(frame.index) + 1);
+    const double t = static_cast<double>(frame.stamp_ns - clock.epoch_ns) * 1e-9;
+    EXPECT_NEAR(t, static_cast<double>(frame.index) / 30.0 + 0.01, 1e-6);
+    indices.push_back(frame.index);
+  }
+  EXPECT_EQ(indices, (std::vector<std::uint64_t>{0, 1, 3, 4}));
+  EXPECT_EQ(source.corrupt_frames(), 1U);
+  EXPECT_FALSE(source.Next(&frame, 100ms)) << "the recording has ended";
+  fs::remove_all(dir);
 }
 
 }  // namespace

@@ -46,11 +46,11 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   s.bounds.min = {-2.5, -1.25, 0.0};
   s.bounds.max = {2.5, 3.75, 2.5};
   s.depth = 9;
-  auto fill = [&](std::vector<pipeline::GridCell>& cells, std::size_t n) {
+  auto fill = [&](std::vector<pipeline::GridRun>& cells, std::size_t n) {
     cells.resize(n);
-    for (pipeline::GridCell& c : cells) {
+    for (pipeline::GridRun& c : cells) {
       c = {static_cast<std::uint16_t>(cell(rng)), static_cast<std::uint16_t>(cell(rng)),
-           static_cast<std::uint16_t>(cell(rng))};
+           static_cast<std::uint16_t>(cell(rng)), static_cast<std::uint16_t>(1 + cell(rng) % 3)};
     }
   };
   fill(s.occupied, occupied);
@@ -72,8 +72,8 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
 // Owned copies of received samples (the reader's loans are returned at once).
 struct ReceivedOccupancy {
   hullguard_Occupancy header{};
-  std::vector<hullguard_GridCell> occupied;
-  std::vector<hullguard_GridCell> occluded;
+  std::vector<hullguard_GridRun> occupied;
+  std::vector<hullguard_GridRun> occluded;
 };
 struct ReceivedStatus {
   hullguard_Status header{};
@@ -157,13 +157,14 @@ bool PublishUntilReceived(DdsPublisher& publisher, const pipeline::OccupancySnap
   return got_occupancy && got_status;
 }
 
-void ExpectSameCells(const std::vector<pipeline::GridCell>& sent,
-                     const std::vector<hullguard_GridCell>& received) {
+void ExpectSameCells(const std::vector<pipeline::GridRun>& sent,
+                     const std::vector<hullguard_GridRun>& received) {
   ASSERT_EQ(sent.size(), received.size());
   for (std::size_t i = 0; i < sent.size(); ++i) {
     ASSERT_EQ(sent[i].x, received[i].x) << i;
     ASSERT_EQ(sent[i].y, received[i].y) << i;
     ASSERT_EQ(sent[i].z, received[i].z) << i;
+    ASSERT_EQ(sent[i].length, received[i].length) << i;
   }
 }
 

@@ -1,6 +1,8 @@
 #include "support/sim_bodies.h"
 
+#include <algorithm>
 #include <cmath>
+#include <random>
 
 namespace hg::testing {
 
@@ -69,6 +71,32 @@ BodyState StandingBody(const Vector3d& base) {
         ankle - 0.04 * up + 0.18 * fwd, 0.045);
   }
   return body;
+}
+
+std::vector<Vector3d> PointsInPeople(const sim::Scene& scene, double t_s, int per_part,
+                                     std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::vector<Vector3d> points;
+  for (const sim::Person& person : scene.people) {
+    const BodyState body = sim::EvaluatePerson(person, t_s);
+    for (const sim::BodyCapsule& c : body.parts) {
+      for (int i = 0; i < per_part;) {
+        // Rejection sampling in the capsule's bounding box.
+        const Vector3d lo = c.a_W.cwiseMin(c.b_W).array() - c.radius_m;
+        const Vector3d hi = c.a_W.cwiseMax(c.b_W).array() + c.radius_m;
+        const Vector3d p = lo + Vector3d(u01(rng), u01(rng), u01(rng)).cwiseProduct(hi - lo);
+        const Vector3d ab = c.b_W - c.a_W;
+        const double s = ab.squaredNorm() > 0
+                             ? std::clamp((p - c.a_W).dot(ab) / ab.squaredNorm(), 0.0, 1.0)
+                             : 0.0;
+        if ((c.a_W + s * ab - p).norm() > c.radius_m) continue;
+        points.push_back(p);
+        ++i;
+      }
+    }
+  }
+  return points;
 }
 
 }  // namespace hg::testing

@@ -3,9 +3,14 @@
 /// Hand-built bodies of 13 capsules for renderer tests and benchmarks: they do
 /// not depend on the body model, so a renderer test fails only for the renderer.
 
+#include <cstdint>
+#include <initializer_list>
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "sim/body.h"
+#include "sim/scene.h"
 
 namespace hg::testing {
 
@@ -15,5 +20,37 @@ namespace hg::testing {
 
 /// A person standing at `base` facing +x with the arms slightly away from the body.
 [[nodiscard]] sim::BodyState StandingBody(const Eigen::Vector3d& base);
+
+/// `per_part` random points inside every body part of every person of the
+/// scene at scene time t_s (seeded, uniform in each capsule).
+[[nodiscard]] std::vector<Eigen::Vector3d> PointsInPeople(const sim::Scene& scene, double t_s,
+                                                          int per_part, std::uint64_t seed);
+
+/// Of `points`, how many fall in a grid cell (2^depth per axis over `bounds`)
+/// that is not in `listed` (runs of cells x .. x + length - 1 at y, z); points
+/// outside the bounds are not counted.
+template <class Cell>
+int PointsInUnlistedCells(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& lo,
+                          const Eigen::Vector3d& hi, int depth,
+                          std::initializer_list<const std::vector<Cell>*> listed) {
+  const int n = 1 << depth;
+  std::vector<std::uint8_t> in(static_cast<std::size_t>(n) * n * n, 0);
+  for (const auto* cells : listed) {
+    for (const Cell& c : *cells) {
+      for (int i = 0; i < c.length; ++i) {
+        in[c.x + i + n * (c.y + static_cast<std::size_t>(n) * c.z)] = 1;
+      }
+    }
+  }
+  int free = 0;
+  for (const Eigen::Vector3d& p : points) {
+    const Eigen::Vector3d rel = (p - lo).cwiseQuotient(hi - lo) * n;
+    if ((rel.array() < 0).any() || (rel.array() >= n).any()) continue;
+    const auto x = static_cast<std::size_t>(rel.x()), y = static_cast<std::size_t>(rel.y()),
+               z = static_cast<std::size_t>(rel.z());
+    free += in[x + n * (y + n * z)] == 0;
+  }
+  return free;
+}
 
 }  // namespace hg::testing

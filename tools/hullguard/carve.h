@@ -41,9 +41,7 @@ struct CarveResult {
 /// masks match cameras in number and size, bounds valid, 3 <= depth <= 16.
 [[nodiscard]] CarveResult Carve(const CarveJob& job);
 
-/// Writes a PNG with a top view (x right, y up) and a side view (x right, z up)
-/// of the tree: occupied leaves shaded by height, occluded grey, free white,
-/// cameras as blue dots, obstacles outlined.
+/// Writes a PNG of the tree's non-free leaves (WriteSnapshotPicture).
 void WriteSnapshot(const octree::Octree& tree, const std::vector<geometry::CameraModel>& cameras,
                    const std::vector<geometry::TriangleMesh>& obstacles, const std::string& path);
 

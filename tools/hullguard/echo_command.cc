@@ -6,9 +6,11 @@
 #include <cstdio>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "hullguard.h"
 #include "hullguard/commands.h"
+#include "hullguard/snapshot_picture.h"
 #include "publish/dds.h"
 #include "publish/dds_publisher.h"
 
@@ -25,7 +27,72 @@ struct EchoFlags {
   double timeout_s = 0;  // 0 = no timeout.
   double deadline_ms = 500;
   bool json = false;
+  std::string topic = "all";  // occupancy, status or all.
+  std::string snapshot;       // PNG of the last occupancy sample; empty: none.
 };
+
+// What the last occupancy sample held (for --snapshot) and the latencies seen.
+struct EchoRecord {
+  std::vector<hullguard_GridRun> occupied, occluded;
+  common::Box3 bounds;
+  int depth = 0;
+  std::uint64_t sequence = 0;
+  std::vector<double> latency_ms;  // Received (CLOCK_REALTIME) minus stamp.
+};
+
+std::int64_t RealtimeNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+void Record(const hullguard_Occupancy& s, bool keep_cells, EchoRecord* r) {
+  r->latency_ms.push_back(static_cast<double>(RealtimeNs() - s.stamp_ns) * 1e-6);
+  if (!keep_cells) return;
+  r->occupied.assign(s.occupied._buffer, s.occupied._buffer + s.occupied._length);
+  r->occluded.assign(s.occluded._buffer, s.occluded._buffer + s.occluded._length);
+  r->bounds.min = Eigen::Vector3d(s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]);
+  r->bounds.max = Eigen::Vector3d(s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]);
+  r->depth = s.depth;
+  r->sequence = s.sequence;
+}
+
+void WriteEchoSnapshot(const EchoRecord& r, const std::string& path) {
+  std::vector<SnapshotBox> boxes;
+  const double n = static_cast<double>(1 << r.depth);
+  const Eigen::Vector3d cell = r.bounds.Size() / n;
+  for (const auto* cells : {&r.occupied, &r.occluded}) {
+    for (const hullguard_GridRun& c : *cells) {
+      common::Box3 box;
+      box.min = r.bounds.min + Eigen::Vector3d(c.x, c.y, c.z).cwiseProduct(cell);
+      box.max = box.min + Eigen::Vector3d(c.length, 1, 1).cwiseProduct(cell);
+      boxes.push_back({box, cells == &r.occupied});
+    }
+  }
+  char caption[96];
+  std::snprintf(caption, sizeof(caption), "Occupancy sample %llu, %d x %d x %d grid.",
+                static_cast<unsigned long long>(r.sequence), 1 << r.depth, 1 << r.depth,
+                1 << r.depth);
+  WriteSnapshotPicture(boxes, r.bounds, {}, {}, caption, path);
+}
+
+void PrintLatency(const EchoRecord& r, bool json) {
+  if (r.latency_ms.empty()) return;
+  std::vector<double> v = r.latency_ms;
+  std::sort(v.begin(), v.end());
+  auto at = [&](double q) {
+    return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+  };
+  if (json) {
+    std::printf(
+        "{\"summary\": \"latency\", \"samples\": %zu, \"median_ms\": %.3f, \"p99_ms\": %.3f, "
+        "\"max_ms\": %.3f}\n",
+        v.size(), at(0.5), at(0.99), v.back());
+  } else {
+    std::printf("latency stamp->received: samples=%zu median=%.2f ms p99=%.2f ms max=%.2f ms\n",
+                v.size(), at(0.5), at(0.99), v.back());
+  }
+}
 
 constexpr dds_attach_t kOccupancyToken = 1;
 constexpr dds_attach_t kStatusToken = 2;
@@ -48,11 +115,18 @@ const char* CameraStateName(std::uint8_t state) {
   }
 }
 
+std::uint64_t Cells(const dds_sequence_hullguard_GridRun& runs) {
+  std::uint64_t n = 0;
+  for (std::uint32_t i = 0; i < runs._length; ++i) n += runs._buffer[i].length;
+  return n;
+}
+
 double OccupiedVolumeM3(const hullguard_Occupancy& s) {
   double volume = 1.0;
   for (int i = 0; i < 3; ++i) volume *= static_cast<double>(s.bounds_max[i]) - s.bounds_min[i];
   const double cells_per_axis = static_cast<double>(std::uint64_t{1} << std::min<int>(s.depth, 21));
-  return volume / (cells_per_axis * cells_per_axis * cells_per_axis) * s.occupied._length;
+  return volume / (cells_per_axis * cells_per_axis * cells_per_axis) *
+         static_cast<double>(Cells(s.occupied));
 }
 
 // Camera names come from the daemon's config; keep JSON valid whatever they hold.
@@ -78,15 +152,20 @@ void PrintOccupancy(const hullguard_Occupancy& s, bool json) {
   if (json) {
     std::printf(
         "{\"topic\": \"occupancy\", \"sequence\": %llu, \"stamp_ns\": %lld, \"complete\": %s, "
-        "\"depth\": %d, \"occupied\": %u, \"occluded\": %u, \"occupied_m3\": %.6g}\n",
+        "\"depth\": %d, \"occupied\": %llu, \"occluded\": %llu, \"runs\": %u, "
+        "\"occupied_m3\": %.6g}\n",
         static_cast<unsigned long long>(s.sequence), static_cast<long long>(s.stamp_ns),
-        s.complete ? "true" : "false", s.depth, s.occupied._length, s.occluded._length,
+        s.complete ? "true" : "false", s.depth, static_cast<unsigned long long>(Cells(s.occupied)),
+        static_cast<unsigned long long>(Cells(s.occluded)), s.occupied._length + s.occluded._length,
         OccupiedVolumeM3(s));
   } else {
     std::printf(
-        "occupancy seq=%llu complete=%d depth=%d occupied=%u occluded=%u occupied_m3=%.6g\n",
+        "occupancy seq=%llu complete=%d depth=%d occupied=%llu occluded=%llu runs=%u "
+        "occupied_m3=%.6g\n",
         static_cast<unsigned long long>(s.sequence), s.complete ? 1 : 0, s.depth,
-        s.occupied._length, s.occluded._length, OccupiedVolumeM3(s));
+        static_cast<unsigned long long>(Cells(s.occupied)),
+        static_cast<unsigned long long>(Cells(s.occluded)), s.occupied._length + s.occluded._length,
+        OccupiedVolumeM3(s));
   }
 }
 
@@ -193,6 +272,7 @@ int RunEcho(const EchoFlags& f) {
   const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                       std::chrono::duration<double>(f.timeout_s));
   int received = 0;
+  EchoRecord record;
   while (f.count == 0 || received < f.count) {
     auto wait = std::chrono::nanoseconds(std::chrono::seconds(1));
     if (f.timeout_s > 0) {
@@ -204,11 +284,18 @@ int RunEcho(const EchoFlags& f) {
     const int n = waitset.Wait(triggered.data(), triggered.size(), wait);
     for (int i = 0; i < n; ++i) {
       if (triggered[i] == kOccupancyToken) {
-        received += TakeAll<hullguard_Occupancy>(occupancy, f.json, PrintOccupancy);
-        CheckEvents(occupancy, f.json);
+        received += TakeAll<hullguard_Occupancy>(occupancy, f.json,
+                                                 [&](const hullguard_Occupancy& sample, bool json) {
+                                                   Record(sample, !f.snapshot.empty(), &record);
+                                                   if (f.topic != "status")
+                                                     PrintOccupancy(sample, json);
+                                                 });
+        if (f.topic != "status") CheckEvents(occupancy, f.json);
       } else {
-        TakeAll<hullguard_Status>(status, f.json, PrintStatus);
-        CheckEvents(status, f.json);
+        TakeAll<hullguard_Status>(status, f.json, [&](const hullguard_Status& sample, bool json) {
+          if (f.topic != "occupancy") PrintStatus(sample, json);
+        });
+        if (f.topic != "occupancy") CheckEvents(status, f.json);
       }
     }
     std::fflush(stdout);
@@ -217,6 +304,11 @@ int RunEcho(const EchoFlags& f) {
     std::fprintf(stderr, "hullguard echo: no occupancy sample on domain %d, topic %s\n", f.domain,
                  publish::OccupancyTopicName(f.prefix).c_str());
     return kExitFailure;
+  }
+  PrintLatency(record, f.json);
+  if (!f.snapshot.empty()) {
+    WriteEchoSnapshot(record, f.snapshot);
+    std::fprintf(stderr, "hullguard echo: wrote %s\n", f.snapshot.c_str());
   }
   return kExitOk;
 }
@@ -237,6 +329,11 @@ void RegisterEcho(CLI::App& app, int* exit_code) {
                   "Requested deadline (ms); must be >= the daemon's two cycles to match")
       ->check(CLI::Range(1.0, 3.6e6));
   cmd->add_flag("--json", flags->json, "One JSON object per line");
+  cmd->add_option("--topic", flags->topic, "Print samples of this topic only")
+      ->check(CLI::IsMember({"occupancy", "status", "all"}));
+  cmd->add_option("--snapshot", flags->snapshot,
+                  "Write a picture (PNG: top, side and perspective views) of the last occupancy "
+                  "sample at exit");
   cmd->callback([flags, exit_code] { *exit_code = RunEcho(*flags); });
 }
 

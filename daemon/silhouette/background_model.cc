@@ -1,0 +1,530 @@
+#include "silhouette/background_model.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <string>
+
+#include "common/check.h"
+#include "common/config_error.h"
+
+// The per-row kernels are plain loops for the auto-vectoriser. x86-64's
+// baseline (SSE2) cannot gather every third byte, which the RGB threshold
+// needs, so on x86-64 they are also built for AVX2 and picked at load time.
+#if defined(__x86_64__) && defined(__has_attribute)
+#if __has_attribute(target_clones) && !defined(__clang__)
+#define HG_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+#endif
+#ifndef HG_VECTOR_CLONES
+#define HG_VECTOR_CLONES
+#endif
+
+namespace hg::silhouette {
+namespace {
+
+constexpr int kTile = 8;
+/// Adaptation visits every kAdaptInterleave-th row per frame (each row once in
+/// kAdaptInterleave frames, at the equivalent rate): an eighth of the work of
+/// updating every row every frame, for the same time constant (50 frames at
+/// the default rate; a row is revisited every 0.27 s at 30 Hz).
+constexpr int kAdaptInterleave = 8;
+/// Gain histogram: ratios in 1/256, up to 4.
+constexpr int kGainBins = 1024;
+constexpr int kMinGainQ8 = 16;
+/// About this many pixels are sampled for the gain.
+constexpr int kGainSampleTarget = 8192;
+/// Learning measures the noise over at most this many frames (uint16 sums).
+constexpr int kMaxDeviationFrames = 64;
+/// A deviation term is at most 255 grey levels in 1/4 levels.
+constexpr int kMaxDeviationTerm = 1020;
+/// Background darker than this (mean grey level per channel) is too noisy for
+/// ratios: no gain sample there, and no shadow there.
+constexpr int kMinRatioLevel = 24;
+/// Gain sample pixels must not be (nearly) saturated.
+constexpr int kMaxRatioLevel = 250;
+
+// The kernels below keep to 8- and 16-bit lanes: (a * b) >> 16 of two uint16
+// narrowed to uint16 becomes one multiply-high instruction per 16 samples.
+// Minima and maxima are written as conditionals on values: std::min's
+// references to temporaries keep GCC from vectorising some of these loops.
+
+/// The high 16 bits of a * b.
+inline std::uint16_t MulHigh(std::uint16_t a, std::uint16_t b) {
+  return static_cast<std::uint16_t>((static_cast<std::uint32_t>(a) * b) >> 16);
+}
+
+/// Expected value of a background sample under the gain: mean * gain with the
+/// mean in 8.8 and the gain in 1/256, clipped like the camera clips.
+inline std::uint16_t Expected(std::uint16_t mean, std::uint16_t gain_q8) {
+  const std::uint16_t e = MulHigh(mean, gain_q8);
+  return e < 255 ? e : 255;
+}
+
+/// The same from the integer byte of the mean alone (the fraction taken as
+/// 1/2): at most half a grey level off.
+inline std::uint16_t ExpectedHigh(std::uint8_t mean_high, std::uint16_t gain_q8) {
+  return Expected(static_cast<std::uint16_t>(mean_high << 8 | 0x80), gain_q8);
+}
+
+/// |frame - expected| * inverse_gain (in 1/256), saturated to 255.
+inline std::uint8_t ScaledDifference(std::uint8_t frame, std::uint16_t expected,
+                                     std::uint16_t inverse_gain_q8) {
+  const std::uint16_t f = frame;
+  const std::uint16_t hi = f > expected ? f : expected;
+  const std::uint16_t lo = f > expected ? expected : f;
+  const std::uint16_t scaled = MulHigh(static_cast<std::uint16_t>((hi - lo) << 8), inverse_gain_q8);
+  return static_cast<std::uint8_t>(scaled < 255 ? scaled : 255);
+}
+
+/// out[i] = |frame[i] - gain * mean[i]| * inverse_gain for n samples.
+HG_VECTOR_CLONES void AbsDiffRow(const std::uint8_t* __restrict frame,
+                                 const std::uint8_t* __restrict mean_high, int n,
+                                 std::uint16_t gain_q8, std::uint16_t inverse_gain_q8,
+                                 std::uint8_t* __restrict out) {
+  for (int i = 0; i < n; ++i) {
+    out[i] = ScaledDifference(frame[i], ExpectedHigh(mean_high[i], gain_q8), inverse_gain_q8);
+  }
+}
+
+/// mask[u] = 255 iff the largest channel difference of pixel u reaches its
+/// threshold. Returns the number of foreground pixels.
+HG_VECTOR_CLONES int ThresholdRgbRow(const std::uint8_t* __restrict diff,
+                                     const std::uint8_t* __restrict threshold, int width,
+                                     std::uint8_t* __restrict mask) {
+  int count = 0;
+  for (int u = 0; u < width; ++u) {
+    const std::uint8_t a = diff[3 * u];
+    const std::uint8_t b = diff[3 * u + 1];
+    const std::uint8_t c = diff[3 * u + 2];
+    const std::uint8_t ab = a > b ? a : b;
+    const std::uint8_t m = ab > c ? ab : c;
+    const bool foreground = m >= threshold[u];
+    mask[u] = foreground ? 255 : 0;
+    count += foreground ? 1 : 0;
+  }
+  return count;
+}
+
+/// The grey version: difference and threshold in one pass.
+HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
+                                      const std::uint8_t* __restrict mean_high,
+                                      const std::uint8_t* __restrict threshold, int width,
+                                      std::uint16_t gain_q8, std::uint16_t inverse_gain_q8,
+                                      std::uint8_t* __restrict mask) {
+  int count = 0;
+  for (int u = 0; u < width; ++u) {
+    const bool foreground = ScaledDifference(frame[u], ExpectedHigh(mean_high[u], gain_q8),
+                                             inverse_gain_q8) >= threshold[u];
+    mask[u] = foreground ? 255 : 0;
+    count += foreground ? 1 : 0;
+  }
+  return count;
+}
+
+/// mean += rate / gain * (frame - gain * mean), in 8.8: the background follows
+/// the frame brought back to the reference illumination. `rate_q17` is
+/// rate / gain in 1/2^17, so that the product of (d * 128) and it, high 16 bits
+/// kept, is the step in 1/256 grey levels (one 16-bit multiply-high per sample).
+HG_VECTOR_CLONES void AdaptSpan(const std::uint8_t* __restrict frame,
+                                std::uint8_t* __restrict mean_high,
+                                std::uint8_t* __restrict mean_low, int n, std::uint16_t gain_q8,
+                                std::int16_t rate_q17) {
+  for (int i = 0; i < n; ++i) {
+    const auto mean = static_cast<std::uint16_t>(mean_high[i] << 8 | mean_low[i]);
+    // (frame - expected) * 128 lies in [-32640, 32640].
+    const auto d7 = static_cast<std::int16_t>(
+        static_cast<std::uint16_t>(frame[i] - Expected(mean, gain_q8)) << 7);
+    const auto step = static_cast<std::int16_t>((static_cast<std::int32_t>(d7) * rate_q17) >> 16);
+    // mean + step, saturated to [0, 65535].
+    const std::uint16_t up = step > 0 ? static_cast<std::uint16_t>(step) : 0;
+    const std::uint16_t down = step < 0 ? static_cast<std::uint16_t>(-step) : 0;
+    const auto room = static_cast<std::uint16_t>(65535 - mean);
+    const auto next =
+        static_cast<std::uint16_t>(mean + (up < room ? up : room) - (down < mean ? down : mean));
+    mean_high[i] = static_cast<std::uint8_t>(next >> 8);
+    mean_low[i] = static_cast<std::uint8_t>(next);
+  }
+}
+
+std::string Bad(const std::string& key, const std::string& problem) {
+  return "background: " + key + ": " + problem;
+}
+
+}  // namespace
+
+void ValidateBackgroundModelOptions(const BackgroundModelOptions& o) {
+  using common::ConfigError;
+  if (o.learn_frames < 1 || o.learn_frames > 100000) {
+    throw ConfigError(Bad("learn_frames", "must be in [1, 100000]"));
+  }
+  if (o.min_threshold < 1 || o.min_threshold > 255) {
+    throw ConfigError(Bad("min_threshold", "must be in [1, 255] grey levels"));
+  }
+  if (o.max_threshold < o.min_threshold || o.max_threshold > 255) {
+    throw ConfigError(Bad("max_threshold", "must be in [min_threshold, 255] grey levels"));
+  }
+  if (!(o.noise_sigmas >= 0.0 && o.noise_sigmas <= 100.0)) {
+    throw ConfigError(Bad("noise_sigmas", "must be in [0, 100]"));
+  }
+  if (!(o.adapt_rate >= 0.0 && o.adapt_rate <= 0.25)) {
+    throw ConfigError(Bad("adapt_rate", "must be in [0, 0.25] per frame"));
+  }
+  if (o.guard_px < 0 || o.guard_px > 1024) {
+    throw ConfigError(Bad("guard_px", "must be in [0, 1024] pixels"));
+  }
+  if (!(o.shadow_min_ratio > 0.0 && o.shadow_min_ratio < 1.0)) {
+    throw ConfigError(Bad("shadow_min_ratio", "must be in (0, 1)"));
+  }
+  if (!(o.shadow_max_ratio >= o.shadow_min_ratio && o.shadow_max_ratio < 1.0)) {
+    throw ConfigError(Bad("shadow_max_ratio", "must be in [shadow_min_ratio, 1)"));
+  }
+}
+
+BackgroundModel::BackgroundModel(int width, int height, const BackgroundModelOptions& options)
+    : width_(width), height_(height), options_(options) {
+  ValidateBackgroundModelOptions(options_);
+  if (width < 1 || height < 1 || width > 32768 || height > 32768) {
+    throw common::ConfigError(Bad("size", "width and height must be in [1, 32768] pixels"));
+  }
+  const auto pixels = static_cast<std::size_t>(width) * height;
+  mean_high_.assign(3 * pixels, 0);
+  mean_low_.assign(3 * pixels, 0);
+  deviation_.assign(3 * pixels, 0);
+  threshold_.assign(pixels, 0);
+  tiles_x_ = (width + kTile - 1) / kTile;
+  tiles_y_ = (height + kTile - 1) / kTile;
+  const auto tiles = static_cast<std::size_t>(tiles_x_) * tiles_y_;
+  tile_foreground_.assign(tiles, 0);
+  tile_scratch_.assign(tiles, 0);
+  tile_free_.assign(tiles, 1);
+  row_diff_.assign(3 * static_cast<std::size_t>(width), 0);
+  gain_histogram_.assign(kGainBins, 0);
+  const int step =
+      std::max(1, static_cast<int>(std::sqrt(static_cast<double>(pixels) / kGainSampleTarget)));
+  int row = 0;
+  for (int v = step / 2; v < height_; v += step, ++row) {
+    // Staggered columns, so that the sample does not line up with textures.
+    for (int u = (row * 5 + step / 2) % step; u < width_; u += step) {
+      sample_pixels_.push_back(static_cast<std::uint32_t>(v) * width_ + u);
+    }
+  }
+  sample_reference_.assign(3 * sample_pixels_.size(), 0);
+  sample_current_.assign(3 * sample_pixels_.size(), 0);
+}
+
+void BackgroundModel::Reset() {
+  channels_ = 0;
+  frames_learned_ = 0;
+  deviation_frames_ = 0;
+  gain_ = 1.0;
+  gain_q8_ = 256;
+  foreground_fraction_ = 1.0;
+  std::fill(mean_high_.begin(), mean_high_.end(), 0);
+  std::fill(mean_low_.begin(), mean_low_.end(), 0);
+  std::fill(deviation_.begin(), deviation_.end(), 0);
+  std::fill(threshold_.begin(), threshold_.end(), 0);
+  std::fill(tile_free_.begin(), tile_free_.end(), 1);
+}
+
+void BackgroundModel::Apply(const common::ImageRgb8& frame, common::ImageU8* mask) {
+  HG_CHECK(frame.width == width_ && frame.height == height_);
+  HG_CHECK(frame.pixels.size() == 3 * static_cast<std::size_t>(width_) * height_);
+  ApplyFrame(frame.pixels.data(), 3, mask);
+}
+
+void BackgroundModel::Apply(const common::ImageU8& frame, common::ImageU8* mask) {
+  HG_CHECK(frame.width == width_ && frame.height == height_);
+  HG_CHECK(frame.pixels.size() == static_cast<std::size_t>(width_) * height_);
+  ApplyFrame(frame.pixels.data(), 1, mask);
+}
+
+double BackgroundModel::MeanAt(int u, int v, int c) const {
+  HG_CHECK(u >= 0 && u < width_ && v >= 0 && v < height_ && c >= 0 && c < std::max(1, channels_));
+  const std::size_t i = (static_cast<std::size_t>(v) * width_ + u) * std::max(1, channels_) + c;
+  return Mean(i) / 256.0;
+}
+
+int BackgroundModel::ThresholdAt(int u, int v) const {
+  HG_CHECK(u >= 0 && u < width_ && v >= 0 && v < height_);
+  const std::uint8_t t = threshold_[static_cast<std::size_t>(v) * width_ + u];
+  return t == 0 ? -1 : t;
+}
+
+void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common::ImageU8* mask) {
+  HG_CHECK(mask != nullptr);
+  const auto pixels = static_cast<std::size_t>(width_) * height_;
+  if (mask->width != width_ || mask->height != height_ || mask->pixels.size() != pixels) {
+    *mask = common::ImageU8(width_, height_);
+  }
+  if (channels_ != channels) {
+    // A camera that changed its pixel format is a camera we do not know.
+    if (channels_ != 0) Reset();
+    channels_ = channels;
+  }
+  if (learning()) {
+    Learn(frame);
+    ++frames_learned_;
+    if (!learning()) FinishLearning();
+    std::fill(mask->pixels.begin(), mask->pixels.end(), 255);
+    foreground_fraction_ = 1.0;
+    ++frames_applied_;
+    return;
+  }
+  if (options_.compensate_gain) {
+    const int q = EstimateGainQ8(frame, sample_reference_.data(), /*all=*/false);
+    // Too few pixels far from foreground to measure: keep the last gain.
+    if (q > 0) gain_q8_ = q;
+    gain_ = gain_q8_ / 256.0;
+  }
+  Process(frame, mask->pixels.data());
+  ++frames_applied_;
+}
+
+void BackgroundModel::GatherSample(std::vector<std::uint16_t>* out) const {
+  const int c = channels_;
+  for (std::size_t s = 0; s < sample_pixels_.size(); ++s) {
+    for (int k = 0; k < c; ++k) (*out)[s * c + k] = Mean(sample_pixels_[s] * c + k);
+  }
+}
+
+int BackgroundModel::EstimateGainQ8(const std::uint8_t* frame, const std::uint16_t* reference,
+                                    bool all) {
+  std::fill(gain_histogram_.begin(), gain_histogram_.end(), 0);
+  const int c = channels_;
+  const auto min_sum = static_cast<std::uint32_t>(c * kMinRatioLevel * 256);
+  int count = 0;
+  for (std::size_t s = 0; s < sample_pixels_.size(); ++s) {
+    const std::uint32_t p = sample_pixels_[s];
+    if (!all) {
+      const std::uint32_t v = p / width_;
+      const std::uint32_t u = p - v * width_;
+      if (tile_free_[(v / kTile) * tiles_x_ + u / kTile] == 0) continue;
+    }
+    const std::uint8_t* f = frame + static_cast<std::size_t>(p) * c;
+    const std::uint16_t* m = reference + s * c;
+    std::uint32_t f_sum = 0;
+    std::uint32_t m_sum = 0;
+    bool usable = true;
+    for (int k = 0; k < c; ++k) {
+      usable = usable && f[k] < kMaxRatioLevel && m[k] < kMaxRatioLevel * 256;
+      f_sum += f[k];
+      m_sum += m[k];
+    }
+    if (!usable || m_sum < min_sum) continue;
+    const std::uint32_t ratio = ((f_sum << 16) + m_sum / 2) / m_sum;
+    ++gain_histogram_[std::min<std::uint32_t>(ratio, kGainBins - 1)];
+    ++count;
+  }
+  if (count < std::max<int>(16, static_cast<int>(sample_pixels_.size() / 64))) return 0;
+  const int half = (count + 1) / 2;
+  int cumulative = 0;
+  for (int bin = 0; bin < kGainBins; ++bin) {
+    cumulative += static_cast<int>(gain_histogram_[bin]);
+    if (cumulative >= half) return std::max(bin, kMinGainQ8);
+  }
+  return kGainBins - 1;
+}
+
+void BackgroundModel::Learn(const std::uint8_t* frame) {
+  const int k = frames_learned_;  // Frames already averaged.
+  int gain_q8 = 256;
+  if (k > 0 && options_.compensate_gain) {
+    // The first frame is the reference illumination; later frames are brought
+    // back to it so that light changing while learning is not taken for noise.
+    GatherSample(&sample_current_);
+    const int q = EstimateGainQ8(frame, sample_current_.data(), /*all=*/true);
+    if (q > 0) gain_q8 = q;
+  }
+  gain_q8_ = gain_q8;
+  gain_ = gain_q8 / 256.0;
+  // x = frame / gain in 8.8: frame * (2^24 / gain_q8) >> 8.
+  const auto inverse_gain = static_cast<std::uint32_t>((1u << 24) / gain_q8);
+  const std::int64_t inverse_count = (std::int64_t{1} << 16) / (k + 1);
+  const bool measure_noise = k >= 1 && k >= options_.learn_frames - kMaxDeviationFrames;
+  // |x - mean after this frame| has deviation sigma * sqrt(k / (k + 1)) for a
+  // mean of k + 1 samples; scaling by sqrt((k + 1) / k) makes it unbiased.
+  const auto unbias_q12 =
+      measure_noise ? static_cast<std::int64_t>(std::lround(4096.0 * std::sqrt((k + 1.0) / k))) : 0;
+  const std::size_t n = static_cast<std::size_t>(width_) * height_ * channels_;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::int64_t x = std::min<std::uint32_t>((frame[i] * inverse_gain) >> 8, 65535);
+    const std::int64_t m = Mean(i);
+    const std::int64_t updated =
+        k == 0 ? x : m + (((x - m) * inverse_count + (std::int64_t{1} << 15)) >> 16);
+    const auto stored = static_cast<std::uint16_t>(std::clamp<std::int64_t>(updated, 0, 65535));
+    mean_high_[i] = static_cast<std::uint8_t>(stored >> 8);
+    mean_low_[i] = static_cast<std::uint8_t>(stored);
+    if (measure_noise) {
+      const std::int64_t deviation = x > updated ? x - updated : updated - x;
+      // 8.8 -> quarter levels: >> 6; Q12: >> 12.
+      const std::int64_t term =
+          std::min<std::int64_t>((deviation * unbias_q12) >> 18, kMaxDeviationTerm);
+      deviation_[i] = static_cast<std::uint16_t>(deviation_[i] + term);
+    }
+  }
+  if (measure_noise) ++deviation_frames_;
+}
+
+void BackgroundModel::FinishLearning() {
+  // Mean absolute deviation of a Gaussian is sigma * sqrt(2 / pi).
+  const double sigma_per_unit =
+      deviation_frames_ > 0 ? std::sqrt(M_PI / 2.0) / (4.0 * deviation_frames_) : 0.0;
+  const std::size_t pixels = static_cast<std::size_t>(width_) * height_;
+  const int c = channels_;
+  for (std::size_t p = 0; p < pixels; ++p) {
+    int largest = 0;
+    for (int k = 0; k < c; ++k) largest = std::max<int>(largest, deviation_[p * c + k]);
+    const double sigma = largest * sigma_per_unit;
+    const double t = std::max<double>(options_.min_threshold, options_.noise_sigmas * sigma);
+    const auto rounded = static_cast<int>(std::ceil(t - 1e-9));
+    threshold_[p] = rounded > options_.max_threshold ? 0 : static_cast<std::uint8_t>(rounded);
+  }
+  std::fill(tile_free_.begin(), tile_free_.end(), 1);
+  GatherSample(&sample_reference_);
+}
+
+void BackgroundModel::Process(const std::uint8_t* frame, std::uint8_t* mask) {
+  // Where the light is dimmer than at learning, a person's contrast shrinks with
+  // it: differences are divided by the gain, so the person stays as visible.
+  // Brighter light is not given the reverse (which would only remove
+  // foreground); the noise does not grow with it.
+  dim_gain_q8_ = std::min(gain_q8_, 256);
+  inverse_gain_q8_ = std::min(65535, (65536 + dim_gain_q8_ / 2) / dim_gain_q8_);
+  rate_q17_ = 0;
+  if (options_.adapt_rate > 0.0) {
+    const double rate = 1.0 - std::pow(1.0 - options_.adapt_rate, kAdaptInterleave);
+    rate_q17_ = static_cast<int>(std::clamp<long>(std::lround(rate / gain_ * 131072.0), 0, 32767));
+  }
+  guard_tiles_ = (options_.guard_px + kTile - 1) / kTile;
+  const int r = guard_tiles_;
+  std::int64_t count = 0;
+  for (int ty = 0; ty < tiles_y_; ++ty) {
+    std::uint8_t* fg = tile_foreground_.data() + static_cast<std::size_t>(ty) * tiles_x_;
+    std::fill(fg, fg + tiles_x_, 0);
+    for (int v = ty * kTile; v < std::min(height_, (ty + 1) * kTile); ++v) {
+      count += ClassifyRow(v, frame, mask);
+    }
+    // Horizontal half of the (separable, Chebyshev) dilation by r tiles.
+    std::uint8_t* near = tile_scratch_.data() + static_cast<std::size_t>(ty) * tiles_x_;
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      std::uint8_t any = 0;
+      for (int x = std::max(0, tx - r); x <= std::min(tiles_x_ - 1, tx + r); ++x) any |= fg[x];
+      near[tx] = any;
+    }
+    if (ty >= r) FinishTileRow(ty - r, frame);
+  }
+  for (int ty = std::max(0, tiles_y_ - r); ty < tiles_y_; ++ty) FinishTileRow(ty, frame);
+  foreground_fraction_ = static_cast<double>(count) / (static_cast<double>(width_) * height_);
+}
+
+int BackgroundModel::ClassifyRow(int v, const std::uint8_t* frame, std::uint8_t* mask) {
+  const int c = channels_;
+  const auto gain_q8 = static_cast<std::uint16_t>(gain_q8_);
+  const auto inverse_gain_q8 = static_cast<std::uint16_t>(inverse_gain_q8_);
+  const std::size_t row = static_cast<std::size_t>(v) * width_;
+  const std::uint8_t* f = frame + row * c;
+  const std::uint8_t* m = mean_high_.data() + row * c;
+  const std::uint8_t* t = threshold_.data() + row;
+  std::uint8_t* out = mask + row;
+  int count;
+  if (c == 3) {
+    AbsDiffRow(f, m, 3 * width_, gain_q8, inverse_gain_q8, row_diff_.data());
+    count = ThresholdRgbRow(row_diff_.data(), t, width_, out);
+  } else {
+    count = ThresholdMonoRow(f, m, t, width_, gain_q8, inverse_gain_q8, out);
+  }
+  if (count == 0) return 0;
+  // Tiles with any differing pixel, shadows included: the guard keeps the
+  // background from learning a shadow that is reported as background.
+  std::uint8_t* tiles = tile_foreground_.data() + static_cast<std::size_t>(v / kTile) * tiles_x_;
+  const int full_tiles = width_ / kTile;
+  for (int tx = 0; tx < full_tiles; ++tx) {
+    std::uint64_t word;
+    std::memcpy(&word, out + tx * kTile, sizeof(word));
+    tiles[tx] |= word != 0 ? 1 : 0;
+  }
+  for (int u = full_tiles * kTile; u < width_; ++u) tiles[u / kTile] |= out[u] != 0 ? 1 : 0;
+  if (options_.shadows_are_foreground) return count;
+  const auto lo_q8 = static_cast<int>(std::lround(options_.shadow_min_ratio * 256.0));
+  const auto hi_q8 = static_cast<int>(std::lround(options_.shadow_max_ratio * 256.0));
+  for (int u0 = 0; u0 < width_; u0 += kTile) {
+    const int u1 = std::min(width_, u0 + kTile);
+    if (u1 - u0 == kTile) {
+      std::uint64_t word;
+      std::memcpy(&word, out + u0, sizeof(word));
+      if (word == 0) continue;
+    }
+    for (int u = u0; u < u1; ++u) {
+      if (out[u] == 0) continue;
+      const std::uint8_t* fp = f + static_cast<std::size_t>(u) * c;
+      const std::uint8_t* mp = m + static_cast<std::size_t>(u) * c;
+      // Sums stay below 2^10 and products below 2^31: int is enough.
+      int e[3] = {0, 0, 0};
+      int e_sum = 0;
+      int f_sum = 0;
+      for (int k = 0; k < c; ++k) {
+        e[k] = ExpectedHigh(mp[k], gain_q8);
+        e_sum += e[k];
+        f_sum += fp[k];
+      }
+      // Darker by a ratio in [lo, hi] (never where the threshold is 0: an
+      // unreliable pixel stays foreground) ...
+      bool shadow = (t[u] != 0) & (e_sum >= c * kMinRatioLevel) & (f_sum * 256 >= lo_q8 * e_sum) &
+                    (f_sum * 256 <= hi_q8 * e_sum);
+      // ... and, in colour, every channel within the threshold (scaled as in
+      // Process()) of the background scaled by that ratio:
+      // |f_k - (F / E) e_k| < t * min(gain, 1).
+      if (c == 3) {
+        const int tolerance = t[u] * dim_gain_q8_ * e_sum;
+        for (int k = 0; k < 3; ++k) {
+          const int d = fp[k] * e_sum - f_sum * e[k];
+          shadow &= (d < 0 ? -d : d) * 256 < tolerance;
+        }
+      }
+      out[u] = shadow ? 0 : out[u];
+      count -= shadow ? 1 : 0;
+    }
+  }
+  return count;
+}
+
+void BackgroundModel::FinishTileRow(int ty, const std::uint8_t* frame) {
+  const int r = guard_tiles_;
+  std::uint8_t* free_row = tile_free_.data() + static_cast<std::size_t>(ty) * tiles_x_;
+  std::fill(free_row, free_row + tiles_x_, 1);
+  for (int y = std::max(0, ty - r); y <= std::min(tiles_y_ - 1, ty + r); ++y) {
+    const std::uint8_t* near = tile_scratch_.data() + static_cast<std::size_t>(y) * tiles_x_;
+    for (int tx = 0; tx < tiles_x_; ++tx) free_row[tx] &= near[tx] ^ 1;
+  }
+  if (rate_q17_ == 0) return;
+  const int c = channels_;
+  const auto gain_q8 = static_cast<std::uint16_t>(gain_q8_);
+  const auto rate_q17 = static_cast<std::int16_t>(rate_q17_);
+  // Each row adapts in one frame out of kAdaptInterleave.
+  const int phase = static_cast<int>(frames_applied_ % kAdaptInterleave);
+  const int v0 = ty * kTile;
+  const int v1 = std::min(height_, v0 + kTile);
+  for (int v = v0 + (phase - v0 % kAdaptInterleave + kAdaptInterleave) % kAdaptInterleave; v < v1;
+       v += kAdaptInterleave) {
+    const std::size_t row = static_cast<std::size_t>(v) * width_ * c;
+    int tx = 0;
+    while (tx < tiles_x_) {
+      if (free_row[tx] == 0) {
+        ++tx;
+        continue;
+      }
+      const int start = tx;
+      while (tx < tiles_x_ && free_row[tx] != 0) ++tx;
+      const int u0 = start * kTile;
+      const int u1 = std::min(tx * kTile, width_);
+      const std::size_t i = row + static_cast<std::size_t>(u0) * c;
+      AdaptSpan(frame + i, mean_high_.data() + i, mean_low_.data() + i, (u1 - u0) * c, gain_q8,
+                rate_q17);
+    }
+  }
+}
+
+}  // namespace hg::silhouette

@@ -1,0 +1,335 @@
+#include "tracking/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+
+#include "common/config_error.h"
+
+namespace hg::tracking {
+namespace {
+
+using Eigen::Vector3d;
+
+void Require(bool ok, const char* key, const char* problem, std::vector<OptionProblem>* out) {
+  if (!ok) out->push_back({key, problem});
+}
+
+bool Finite(double x) { return std::isfinite(x); }
+
+void ThrowIfBad(const TrackerOptions& options) {
+  const std::vector<OptionProblem> problems = CheckOptions(options);
+  if (problems.empty()) return;
+  std::string message = "tracking:";
+  for (std::size_t i = 0; i < problems.size(); ++i) {
+    message += (i == 0 ? " " : "; ") + problems[i].key + ": " + problems[i].problem;
+  }
+  throw common::ConfigError(message);
+}
+
+std::pair<VoxelMap, CollisionWorld> BuildStatic(const TrackerOptions& options,
+                                                const common::Box3& bounds,
+                                                const StaticScene& scene) {
+  ThrowIfBad(options);
+  const VoxelGrid grid(bounds, options.voxel_m);
+  StaticVoxels voxels = BuildStaticVoxels(grid, scene);
+  std::vector<CollisionShape> shapes = CollisionShapes(scene, voxels);
+  return {VoxelMap(grid, std::move(voxels.states)), CollisionWorld(std::move(shapes))};
+}
+
+/// Distinct seeds per track from one option (splitmix64 finaliser).
+std::uint64_t MixSeed(std::uint64_t seed, std::uint32_t id) {
+  std::uint64_t z = seed + 0x9E3779B97F4A7C15ULL * (static_cast<std::uint64_t>(id) + 1);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return z ^ (z >> 31);
+}
+
+bool Overlap(const common::Box3& a, const common::Box3& b, double margin) {
+  return (a.min.array() - margin <= b.max.array()).all() &&
+         (b.min.array() - margin <= a.max.array()).all();
+}
+
+}  // namespace
+
+std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
+  std::vector<OptionProblem> p;
+  const ParticleFilterOptions& f = o.filter;
+  Require(o.voxel_m > 0.0 && Finite(o.voxel_m), "voxel_m", "must be > 0", &p);
+  Require(Finite(o.likelihood.unknown), "likelihood.unknown", "must be finite", &p);
+  Require(Finite(o.likelihood.occluded), "likelihood.occluded", "must be finite", &p);
+  Require(Finite(o.likelihood.known), "likelihood.known", "must be finite", &p);
+  Require(Finite(o.likelihood.free), "likelihood.free", "must be finite", &p);
+  Require(f.num_particles >= 1 && f.num_particles <= 1000000, "filter.num_particles",
+          "must be in [1, 1000000]", &p);
+  Require(f.position_noise_m_per_sqrt_s >= 0.0 && Finite(f.position_noise_m_per_sqrt_s),
+          "filter.position_noise_m_per_sqrt_s", "must be >= 0", &p);
+  Require(f.vertical_noise_m_per_sqrt_s >= 0.0 && Finite(f.vertical_noise_m_per_sqrt_s),
+          "filter.vertical_noise_m_per_sqrt_s", "must be >= 0", &p);
+  Require(f.axis_noise_m_per_sqrt_s >= 0.0 && Finite(f.axis_noise_m_per_sqrt_s),
+          "filter.axis_noise_m_per_sqrt_s", "must be >= 0", &p);
+  Require(f.min_half_axis_xy_m > 0.0 && f.min_half_axis_xy_m <= f.max_half_axis_xy_m &&
+              Finite(f.max_half_axis_xy_m),
+          "filter.min_half_axis_xy_m", "must be > 0 and <= filter.max_half_axis_xy_m", &p);
+  Require(f.min_half_axis_z_m > 0.0 && f.min_half_axis_z_m <= f.max_half_axis_z_m &&
+              Finite(f.max_half_axis_z_m),
+          "filter.min_half_axis_z_m", "must be > 0 and <= filter.max_half_axis_z_m", &p);
+  const double min_volume = 4.0 / 3.0 * std::numbers::pi * f.min_half_axis_xy_m *
+                            f.min_half_axis_xy_m * f.min_half_axis_z_m;
+  Require(f.max_volume_m3 >= min_volume && Finite(f.max_volume_m3), "filter.max_volume_m3",
+          "must hold the smallest ellipsoid of the half-axis ranges", &p);
+  Require(f.velocity_gain >= 0.0 && f.velocity_gain <= 1.0, "filter.velocity_gain",
+          "must be in [0, 1]", &p);
+  Require(f.max_speed_mps > 0.0 && Finite(f.max_speed_mps), "filter.max_speed_mps", "must be > 0",
+          &p);
+  Require(f.collision_radius_m >= 0.0 &&
+              f.collision_radius_m <= std::min(f.min_half_axis_xy_m, f.min_half_axis_z_m),
+          "filter.collision_radius_m", "must be >= 0 and not larger than any half-axis", &p);
+  Require(f.init_position_spread_m >= 0.0 && Finite(f.init_position_spread_m),
+          "filter.init_position_spread_m", "must be >= 0", &p);
+  Require(f.init_axis_spread_m >= 0.0 && Finite(f.init_axis_spread_m),
+          "filter.init_axis_spread_m", "must be >= 0", &p);
+  Require(o.max_tracks >= 1 && o.max_tracks <= 1024, "max_tracks", "must be in [1, 1024]", &p);
+  Require(o.birth_min_volume_m3 > 0.0 && Finite(o.birth_min_volume_m3), "birth_min_volume_m3",
+          "must be > 0", &p);
+  Require(o.birth_gate_margin_m >= 0.0 && Finite(o.birth_gate_margin_m), "birth_gate_margin_m",
+          "must be >= 0", &p);
+  Require(o.reacquire_radius_m >= 0.0 && Finite(o.reacquire_radius_m), "reacquire_radius_m",
+          "must be >= 0", &p);
+  Require(o.reacquire_speed_mps >= 0.0 && Finite(o.reacquire_speed_mps), "reacquire_speed_mps",
+          "must be >= 0", &p);
+  Require(o.support_min_volume_m3 >= 0.0 && Finite(o.support_min_volume_m3),
+          "support_min_volume_m3", "must be >= 0", &p);
+  Require(o.death_timeout_s > 0.0, "death_timeout_s", "must be > 0", &p);
+  Require(o.occluded_death_timeout_s > 0.0, "occluded_death_timeout_s", "must be > 0", &p);
+  Require(o.occluded_min_share > 0.0 && o.occluded_min_share <= 1.0, "occluded_min_share",
+          "must be in (0, 1]", &p);
+  Require(o.overlap_margin_m >= 0.0 && Finite(o.overlap_margin_m), "overlap_margin_m",
+          "must be >= 0", &p);
+  Require(o.first_dt_s > 0.0 && Finite(o.first_dt_s), "first_dt_s", "must be > 0", &p);
+  Require(o.max_dt_s >= 1e-3 && Finite(o.max_dt_s), "max_dt_s", "must be >= 0.001", &p);
+  return p;
+}
+
+Tracker::Tracker(const TrackerOptions& options, const common::Box3& bounds,
+                 const StaticScene& scene)
+    : Tracker(options, BuildStatic(options, bounds, scene)) {}
+
+Tracker::Tracker(const TrackerOptions& options, std::pair<VoxelMap, CollisionWorld>&& built)
+    : Tracker(options, std::move(built.first), std::move(built.second)) {}
+
+Tracker::Tracker(const TrackerOptions& options, VoxelMap map, CollisionWorld world)
+    : options_(options), map_(std::move(map)), world_(std::move(world)) {
+  ThrowIfBad(options_);
+  Init();
+}
+
+void Tracker::Init() {
+  slots_.resize(options_.max_tracks);
+  for (Slot& s : slots_) {
+    s.filter = std::make_unique<ParticleFilter>(options_.filter);
+    s.region.reserve(options_.max_tracks);
+  }
+  gates_.reserve(options_.max_tracks);
+  tracks_.reserve(options_.max_tracks);
+  visited_.assign(map_.grid().size(), 0);
+  queue_.reserve(map_.grid().size());
+  for (int dz = -1; dz <= 1; ++dz) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        const int manhattan = std::abs(dx) + std::abs(dy) + std::abs(dz);
+        if (manhattan == 0 || (!options_.connect_26 && manhattan > 1)) continue;
+        neighbours_.emplace_back(dx, dy, dz);
+      }
+    }
+  }
+}
+
+void Tracker::Update(const pipeline::OccupancySnapshot& snapshot) {
+  map_.SetUnknownFromSnapshot(snapshot);
+  Step(snapshot.stamp_ns);
+}
+
+void Tracker::Step(std::int64_t stamp_ns) {
+  double dt = options_.first_dt_s;
+  if (has_stamp_) {
+    dt = std::clamp(static_cast<double>(stamp_ns - last_stamp_ns_) * 1e-9, 1e-3, options_.max_dt_s);
+  }
+  last_stamp_ns_ = stamp_ns;
+  has_stamp_ = true;
+  ++stats_.cycles;
+
+  // 1. Voronoi regions of tracks whose clouds overlap (previous estimates).
+  for (Slot& s : slots_) s.region.clear();
+  for (std::size_t i = 0; i < slots_.size(); ++i) {
+    if (!slots_[i].alive) continue;
+    const FilterEstimate& ei = slots_[i].filter->estimate();
+    for (std::size_t j = i + 1; j < slots_.size(); ++j) {
+      if (!slots_[j].alive) continue;
+      const FilterEstimate& ej = slots_[j].filter->estimate();
+      if (!Overlap(ei.cloud_bounds, ej.cloud_bounds, options_.overlap_margin_m)) continue;
+      const Vector3d& ci = ei.ellipsoid.centre_W;
+      const Vector3d& cj = ej.ellipsoid.centre_W;
+      slots_[i].region.push_back(HalfSpace::NearerTo(ci, cj));
+      slots_[j].region.push_back(HalfSpace::NearerTo(cj, ci));
+    }
+  }
+
+  // 2. Filters, support, occlusion. 3. Deaths.
+  const common::Box3 covered = map_.grid().covered();
+  for (Slot& s : slots_) {
+    if (!s.alive) continue;
+    s.filter->Step(dt, map_, options_.likelihood, world_, s.region);
+    Assess(&s, dt);
+    const double timeout = s.occluded ? options_.occluded_death_timeout_s : options_.death_timeout_s;
+    const Ellipsoid& e = s.filter->estimate().ellipsoid;
+    const bool left = ((e.centre_W + e.half_axes_m).array() < covered.min.array()).any() ||
+                      ((e.centre_W - e.half_axes_m).array() > covered.max.array()).any();
+    if (s.time_since_support_s > timeout || left) {
+      s.alive = false;
+      ++stats_.deaths;
+    }
+  }
+
+  // 4. Births.
+  Births();
+  Publish();
+}
+
+void Tracker::Assess(Slot* s, double dt_s) {
+  const EllipsoidCounts n = CountVoxels(map_, s->filter->estimate().ellipsoid, s->region);
+  const bool supported =
+      n.unknown * map_.grid().voxel_volume_m3() >= options_.support_min_volume_m3 && n.unknown > 0;
+  const int total = n.Total();
+  s->occluded_fraction = total > 0 ? static_cast<double>(n.occluded) / total : 0.0;
+  s->occluded = s->occluded_fraction >= options_.occluded_min_share;
+  s->age_s += dt_s;
+  s->time_since_support_s = supported ? 0.0 : s->time_since_support_s + dt_s;
+}
+
+bool Tracker::Explained(const Vector3d& p_W) const {
+  for (const Ellipsoid& g : gates_) {
+    if (g.Contains(p_W)) return true;
+  }
+  return false;
+}
+
+void Tracker::Births() {
+  gates_.clear();
+  for (const Slot& s : slots_) {
+    if (!s.alive) continue;
+    const FilterEstimate& e = s.filter->estimate();
+    const Vector3d sd = e.centre_covariance_m2.diagonal().cwiseMax(0.0).cwiseSqrt();
+    gates_.push_back({e.ellipsoid.centre_W, e.ellipsoid.half_axes_m +
+                                                Vector3d::Constant(options_.birth_gate_margin_m) +
+                                                2.0 * sd});
+  }
+  const VoxelGrid& g = map_.grid();
+  const double vv = g.voxel_volume_m3();
+  const std::span<const std::uint32_t> unknown = map_.unknown_voxels();
+  for (const std::uint32_t seed : unknown) {
+    if (visited_[seed] != 0) continue;
+    // One component: breadth-first from the seed through UNKNOWN neighbours.
+    queue_.clear();
+    queue_.push_back(seed);
+    visited_[seed] = 1;
+    int unexplained = 0;
+    Vector3d sum = Vector3d::Zero();
+    Vector3d sum_sq = Vector3d::Zero();
+    for (std::size_t head = 0; head < queue_.size(); ++head) {
+      const Eigen::Vector3i c = g.Coords(queue_[head]);
+      const Vector3d p = g.Centre(c.x(), c.y(), c.z());
+      if (!Explained(p)) {
+        ++unexplained;
+        sum += p;
+        sum_sq += p.cwiseProduct(p);
+      }
+      for (const Eigen::Vector3i& d : neighbours_) {
+        const Eigen::Vector3i q = c + d;
+        if (!g.InGrid(q.x(), q.y(), q.z())) continue;
+        const std::uint32_t qi = g.Index(q.x(), q.y(), q.z());
+        if (visited_[qi] == 0 && map_.State(qi) == VoxelState::kUnknown) {
+          visited_[qi] = 1;
+          queue_.push_back(qi);
+        }
+      }
+    }
+    if (unexplained * vv < options_.birth_min_volume_m3) continue;
+    // Uniform solid ellipsoid: variance along an axis = half-axis^2 / 5.
+    const Vector3d mean = sum / unexplained;
+    const Vector3d var = (sum_sq / unexplained - mean.cwiseProduct(mean)).cwiseMax(0.0);
+    const Ellipsoid initial{mean, (5.0 * var).cwiseSqrt()};
+    Slot* lost = nullptr;
+    double lost_distance = std::numeric_limits<double>::infinity();
+    for (Slot& s : slots_) {
+      if (!s.alive || s.time_since_support_s <= 0.0) continue;
+      const double d = (s.filter->estimate().ellipsoid.centre_W - mean).norm();
+      const double reach =
+          options_.reacquire_radius_m + options_.reacquire_speed_mps * s.time_since_support_s;
+      if (d <= reach && d < lost_distance) {
+        lost = &s;
+        lost_distance = d;
+      }
+    }
+    if (lost != nullptr) {
+      lost->filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed ^ stats_.cycles, lost->id));
+      Assess(lost, 0.0);
+      lost->time_since_support_s = 0.0;
+      ++stats_.reacquisitions;
+      continue;
+    }
+    Slot* free_slot = nullptr;
+    for (Slot& s : slots_) {
+      if (!s.alive) {
+        free_slot = &s;
+        break;
+      }
+    }
+    if (free_slot == nullptr) {
+      ++stats_.births_dropped;
+      continue;
+    }
+    Slot& s = *free_slot;
+    s.alive = true;
+    s.id = next_id_++;
+    s.age_s = 0.0;
+    s.time_since_support_s = 0.0;
+    s.region.clear();
+    s.filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed, s.id));
+    Assess(&s, 0.0);
+    s.time_since_support_s = 0.0;
+    ++stats_.births;
+  }
+  for (const std::uint32_t i : unknown) visited_[i] = 0;
+}
+
+void Tracker::Publish() {
+  tracks_.clear();
+  for (const Slot& s : slots_) {
+    if (!s.alive) continue;
+    const FilterEstimate& e = s.filter->estimate();
+    Track t;
+    t.id = s.id;
+    t.centre_W = e.ellipsoid.centre_W;
+    t.half_axes_m = e.ellipsoid.half_axes_m;
+    t.velocity_W_mps = e.velocity_W_mps;
+    t.centre_covariance_m2 = e.centre_covariance_m2;
+    t.occluded_fraction = s.occluded_fraction;
+    t.occluded = s.occluded;
+    t.age_s = s.age_s;
+    t.time_since_support_s = s.time_since_support_s;
+    tracks_.push_back(t);
+  }
+  std::sort(tracks_.begin(), tracks_.end(),
+            [](const Track& a, const Track& b) { return a.id < b.id; });
+}
+
+const ParticleFilter* Tracker::filter(std::uint32_t id) const {
+  for (const Slot& s : slots_) {
+    if (s.alive && s.id == id) return s.filter.get();
+  }
+  return nullptr;
+}
+
+}  // namespace hg::tracking

@@ -1,0 +1,134 @@
+// Background model: one Full HD frame of the demo cell's first camera (three
+// walking people, their shadows, sensor noise, a global light change) into a
+// foreground mask, on one core. The daemon's budget is 3 ms per RGB frame
+// (8 cameras at 30 Hz on two cores, next to the rest of the pipeline).
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "scene/demo_cell.h"
+#include "silhouette/background_model.h"
+#include "sim/colour_renderer.h"
+#include "sim/scene.h"
+#include "support/sim_bodies.h"
+
+namespace hg::bench {
+namespace {
+
+using Eigen::Vector3d;
+
+constexpr int kFrames = 8;
+
+struct Workload {
+  std::vector<common::ImageRgb8> empty;   ///< Learning frames.
+  std::vector<common::ImageRgb8> frames;  ///< Frames with people, after learning.
+};
+
+sim::Scene BenchCell() {
+  scene::DemoCellOptions options;
+  options.num_cameras = 1;
+  options.obstacles = false;
+  const scene::DemoCell cell = scene::MakeDemoCell(options);
+  sim::Scene scene;
+  scene.name = "background_bench";
+  scene.bounds = cell.bounds;
+  scene.cameras.push_back({cell.cameras[0], 0.0});
+  for (int p = 0; p < 3; ++p) {
+    sim::Person person;
+    person.name = std::to_string(p);
+    person.shirt = sim::Rgb(0.2F + 0.3F * p, 0.3F, 0.7F - 0.2F * p);
+    scene.people.push_back(person);
+  }
+  scene.imaging.light_change_amplitude = 0.1;
+  scene.imaging.light_change_period_s = 20.0;
+  return scene;
+}
+
+/// Rendered once per run and shared by the benchmarks.
+const Workload& GetWorkload() {
+  static const Workload workload = [] {
+    const sim::Scene scene = BenchCell();
+    const sim::ColourRenderer renderer(scene, 0);
+    const silhouette::BackgroundModelOptions defaults;
+    Workload w;
+    w.empty.resize(defaults.learn_frames);
+    for (int i = 0; i < defaults.learn_frames; ++i) {
+      renderer.Render({}, i / 30.0, static_cast<std::uint64_t>(i), &w.empty[i]);
+    }
+    w.frames.resize(kFrames);
+    for (int i = 0; i < kFrames; ++i) {
+      const double t = 2.0 + i / 30.0;
+      std::vector<sim::BodyState> people;
+      for (int p = 0; p < 3; ++p) {
+        const double angle = 0.6 * t + 2.1 * p;
+        const Vector3d base(2.0 + 1.0 * std::cos(angle), 2.0 + 0.9 * std::sin(angle), 0.0);
+        people.push_back(testing::WalkingBody(base, angle + M_PI / 2, 5.6 * t + p));
+      }
+      renderer.Render(people, t, static_cast<std::uint64_t>(1000 + i), &w.frames[i]);
+    }
+    return w;
+  }();
+  return workload;
+}
+
+common::ImageU8 Grey(const common::ImageRgb8& rgb) {
+  common::ImageU8 grey(rgb.width, rgb.height);
+  for (std::size_t i = 0; i < grey.pixels.size(); ++i) {
+    const std::uint8_t* p = rgb.pixels.data() + 3 * i;
+    grey.pixels[i] = static_cast<std::uint8_t>((77 * p[0] + 150 * p[1] + 29 * p[2] + 128) >> 8);
+  }
+  return grey;
+}
+
+template <typename Image>
+void RunModel(benchmark::State& state, const std::vector<Image>& empty,
+              const std::vector<Image>& frames, const silhouette::BackgroundModelOptions& options) {
+  silhouette::BackgroundModel model(frames[0].width, frames[0].height, options);
+  common::ImageU8 mask;
+  for (const Image& frame : empty) model.Apply(frame, &mask);
+  double foreground = 0.0;
+  std::size_t i = 0;
+  for (auto _ : state) {
+    model.Apply(frames[i++ % frames.size()], &mask);
+    foreground += model.foreground_fraction();
+    benchmark::ClobberMemory();
+  }
+  state.counters["foreground_share"] =
+      foreground / static_cast<double>(std::max<std::int64_t>(1, state.iterations()));
+  state.counters["gain"] = model.gain();
+  state.counters["Mpixel_per_s"] =
+      benchmark::Counter(static_cast<double>(frames[0].width) * frames[0].height * 1e-6 *
+                             static_cast<double>(state.iterations()),
+                         benchmark::Counter::kIsRate);
+}
+
+void BM_BackgroundModelFullHd(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  RunModel(state, w.empty, w.frames, silhouette::BackgroundModelOptions{});
+}
+BENCHMARK(BM_BackgroundModelFullHd)->Unit(benchmark::kMillisecond);
+
+// Shadows reported as background: a second, scalar pass over foreground pixels.
+void BM_BackgroundModelFullHdShadowsAsBackground(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  silhouette::BackgroundModelOptions options;
+  options.shadows_are_foreground = false;
+  RunModel(state, w.empty, w.frames, options);
+}
+BENCHMARK(BM_BackgroundModelFullHdShadowsAsBackground)->Unit(benchmark::kMillisecond);
+
+void BM_BackgroundModelFullHdMono8(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  std::vector<common::ImageU8> empty;
+  std::vector<common::ImageU8> frames;
+  for (const auto& f : w.empty) empty.push_back(Grey(f));
+  for (const auto& f : w.frames) frames.push_back(Grey(f));
+  RunModel(state, empty, frames, silhouette::BackgroundModelOptions{});
+}
+BENCHMARK(BM_BackgroundModelFullHdMono8)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace hg::bench

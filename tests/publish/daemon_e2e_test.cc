@@ -1,0 +1,346 @@
+// End to end over DDS: hullguardd runs on simulated cameras and this test
+// subscribes as a robot controller would. Run inside a private network
+// namespace holding only loopback (tests/publish/in_netns.sh).
+//   daemon_e2e_test HULLGUARDD SOURCE_DIR
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "hullguard.h"
+#include "publish/dds.h"
+#include "publish/dds_publisher.h"
+#include "sim/scene.h"
+#include "support/run_tool.h"
+#include "support/sim_bodies.h"
+
+extern char** environ;
+
+namespace hg {
+namespace {
+
+namespace fs = std::filesystem;
+namespace dds = publish::dds;
+using Clock = std::chrono::steady_clock;
+using namespace std::chrono_literals;
+
+std::string g_daemon;
+std::string g_source_dir;
+
+std::string ReadFile(const std::string& path) {
+  std::ifstream in(path);
+  std::ostringstream text;
+  text << in.rdbuf();
+  return text.str();
+}
+
+std::string Replace(std::string text, const std::string& from, const std::string& to) {
+  for (std::size_t at = text.find(from); at != std::string::npos;
+       at = text.find(from, at + to.size())) {
+    text.replace(at, from.size(), to);
+  }
+  return text;
+}
+
+/// hullguardd running in the background, its stderr in a file.
+class Daemon {
+ public:
+  Daemon(const std::string& config, double duration_s, const fs::path& dir)
+      : log_((dir / "hullguardd.log").string()) {
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 2, log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+    const std::string duration = std::to_string(duration_s);
+    std::vector<std::string> args = {g_daemon, "--config", config, "--duration", duration};
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    EXPECT_EQ(posix_spawn(&pid_, g_daemon.c_str(), &actions, nullptr, argv.data(), environ), 0);
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~Daemon() {
+    if (pid_ > 0) {
+      kill(pid_, SIGTERM);
+      Wait();
+    }
+  }
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  int Wait() {
+    int status = 0;
+    if (pid_ > 0 && waitpid(pid_, &status, 0) == pid_) pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  [[nodiscard]] std::string Log() const { return ReadFile(log_); }
+
+  /// The CLOCK_REALTIME instant of scene time 0, from the daemon's log.
+  std::int64_t SceneEpochNs() const {
+    const std::regex line("time 0 is ([0-9]+) ns");
+    for (const auto give_up = Clock::now() + 20s; Clock::now() < give_up;
+         std::this_thread::sleep_for(50ms)) {
+      std::smatch m;
+      const std::string log = Log();
+      if (std::regex_search(log, m, line)) return std::stoll(m[1]);
+    }
+    ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
+    return 0;
+  }
+
+ private:
+  std::string log_;
+  pid_t pid_ = -1;
+};
+
+struct OccupancySample {
+  std::uint64_t sequence = 0;
+  std::int64_t stamp_ns = 0;
+  std::int64_t received_ns = 0;
+  bool complete = false;
+  Eigen::Vector3d lo, hi;
+  int depth = 0;
+  std::vector<hullguard_GridRun> occupied, occluded;
+};
+
+struct StatusSample {
+  std::uint64_t sequence = 0;
+  Clock::time_point received;
+  bool degraded = false;
+  std::vector<std::uint8_t> camera_states;
+};
+
+std::int64_t RealtimeNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+/// A controller's view: both topics, collected for a while.
+class Controller {
+ public:
+  Controller()
+      : participant_(0),
+        occupancy_topic_(participant_, &hullguard_Occupancy_desc,
+                         publish::OccupancyTopicName("hullguard")),
+        status_topic_(participant_, &hullguard_Status_desc, publish::StatusTopicName("hullguard")),
+        occupancy_(participant_, occupancy_topic_, publish::OccupancyReaderQos(1s).get()),
+        status_(participant_, status_topic_, publish::StatusReaderQos(1s).get()) {}
+
+  /// Polls both readers for `duration` (or until `enough` occupancy samples).
+  void Collect(std::chrono::milliseconds duration, std::size_t enough = SIZE_MAX) {
+    for (const auto end = Clock::now() + duration;
+         Clock::now() < end && occupancy_samples.size() < enough;) {
+      TakeOccupancy();
+      TakeStatus();
+      std::this_thread::sleep_for(5ms);
+    }
+  }
+
+  std::vector<OccupancySample> occupancy_samples;
+  std::vector<StatusSample> status_samples;
+
+ private:
+  void TakeOccupancy() {
+    void* samples[8] = {};
+    dds_sample_info_t infos[8];
+    const dds_return_t n = dds_take(occupancy_.handle(), samples, infos, 8, 8);
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto& s = *static_cast<const hullguard_Occupancy*>(samples[i]);
+      OccupancySample o;
+      o.sequence = s.sequence;
+      o.stamp_ns = s.stamp_ns;
+      o.received_ns = RealtimeNs();
+      o.complete = s.complete;
+      o.lo = Eigen::Vector3d(s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]);
+      o.hi = Eigen::Vector3d(s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]);
+      o.depth = s.depth;
+      o.occupied.assign(s.occupied._buffer, s.occupied._buffer + s.occupied._length);
+      o.occluded.assign(s.occluded._buffer, s.occluded._buffer + s.occluded._length);
+      occupancy_samples.push_back(std::move(o));
+    }
+    if (n > 0) dds_return_loan(occupancy_.handle(), samples, n);
+  }
+  void TakeStatus() {
+    void* samples[8] = {};
+    dds_sample_info_t infos[8];
+    const dds_return_t n = dds_take(status_.handle(), samples, infos, 8, 8);
+    for (int i = 0; i < n; ++i) {
+      if (!infos[i].valid_data) continue;
+      const auto& s = *static_cast<const hullguard_Status*>(samples[i]);
+      StatusSample st{s.sequence, Clock::now(), s.degraded, {}};
+      for (std::uint32_t c = 0; c < s.cameras._length; ++c) {
+        st.camera_states.push_back(s.cameras._buffer[c].state);
+      }
+      status_samples.push_back(std::move(st));
+    }
+    if (n > 0) dds_return_loan(status_.handle(), samples, n);
+  }
+
+  dds::Participant participant_;
+  dds::Topic occupancy_topic_, status_topic_;
+  dds::Reader occupancy_, status_;
+};
+
+std::size_t Cells(const std::vector<hullguard_GridRun>& runs) {
+  std::size_t n = 0;
+  for (const hullguard_GridRun& r : runs) n += r.length;
+  return n;
+}
+
+/// Ground-truth points of the scene at the sample's stamp in cells the
+/// sample lists neither occupied nor occluded.
+int PointsReportedFree(const sim::Scene& scene, std::int64_t epoch_ns, const OccupancySample& s,
+                       std::uint64_t seed) {
+  const double t = static_cast<double>(s.stamp_ns - epoch_ns) * 1e-9;
+  return testing::PointsInUnlistedCells(testing::PointsInPeople(scene, t, 40, seed), s.lo, s.hi,
+                                        s.depth, {&s.occupied, &s.occluded});
+}
+
+class DaemonE2E : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("hg_e2e_" + std::to_string(getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+// People walking in the demo cell: every sampled point of every person, at the
+// instant each received sample is stamped with, lies in a listed cell.
+TEST_F(DaemonE2E, ReceivedOccupancyCoversEveryPersonPoint) {
+  const std::string config = g_source_dir + "/config/demo.yaml";
+  const sim::Scene scene = sim::LoadScene(g_source_dir + "/config/scenes/demo_cell.yaml");
+  Controller controller;
+  Daemon daemon(config, 9.0, dir_);
+  const std::int64_t epoch = daemon.SceneEpochNs();
+  controller.Collect(8000ms, 60);
+  ASSERT_GE(controller.occupancy_samples.size(), 20U) << daemon.Log();
+  int free = 0;
+  std::size_t occupied = 0;
+  for (std::size_t i = 0; i < controller.occupancy_samples.size(); ++i) {
+    const OccupancySample& s = controller.occupancy_samples[i];
+    free += PointsReportedFree(scene, epoch, s, i);
+    occupied += Cells(s.occupied);
+  }
+  EXPECT_EQ(free, 0);
+  EXPECT_GT(occupied, 0U);
+  EXPECT_FALSE(controller.status_samples.empty());
+}
+
+// One camera stops delivering 3 s in (a pulled cable). Within its timeout the
+// status turns degraded and names the camera stale, and the occupied volume of
+// the static scene only grows.
+TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
+  std::string text = ReadFile(g_source_dir + "/config/demo.yaml");
+  text = Replace(text, "scene: scenes/demo_cell.yaml",
+                 "scene: " + g_source_dir + "/tests/data/demo_cell_standing.yaml");
+  // Depth 6 keeps the updates well inside the deadline on a loaded machine, so
+  // complete cycles are there to compare with.
+  text = Replace(text, "  depth: 7", "  depth: 6");
+  text = Replace(text, "file: demo_cell/obstacles.obj",
+                 "file: " + g_source_dir + "/config/demo_cell/obstacles.obj");
+  // The last camera's source gets the fault.
+  const std::size_t last = text.rfind("demo_cell_standing.yaml}");
+  ASSERT_NE(last, std::string::npos);
+  text.replace(last, std::string("demo_cell_standing.yaml}").size(),
+               "demo_cell_standing.yaml, stop_after_s: 3}");
+  const std::string config = (dir_ / "standing.yaml").string();
+  std::ofstream(config) << text;
+  const sim::Scene scene = sim::LoadScene(g_source_dir + "/tests/data/demo_cell_standing.yaml");
+
+  Controller controller;
+  Daemon daemon(config, 7.0, dir_);
+  const std::int64_t epoch = daemon.SceneEpochNs();
+  controller.Collect(6500ms);
+  ASSERT_FALSE(controller.occupancy_samples.empty()) << daemon.Log();
+
+  // Before the stop (with a margin for the camera's last frames), cycles whose
+  // status was healthy; after it, every cycle once the timeout has certainly
+  // passed.
+  std::set<std::uint64_t> healthy_cycles;  // Every camera ok (an update may have aborted).
+  for (const StatusSample& st : controller.status_samples) {
+    if (std::all_of(st.camera_states.begin(), st.camera_states.end(),
+                    [](std::uint8_t state) { return state == 1; })) {
+      healthy_cycles.insert(st.sequence);
+    }
+  }
+  const std::int64_t stop_ns = epoch + 3'000'000'000LL;
+  std::size_t max_before = 0, min_after = SIZE_MAX, max_after = 0, before = 0, after = 0;
+  int free = 0;
+  for (std::size_t i = 0; i < controller.occupancy_samples.size(); ++i) {
+    const OccupancySample& s = controller.occupancy_samples[i];
+    free += PointsReportedFree(scene, epoch, s, i);
+    if (s.stamp_ns < stop_ns - 300'000'000LL && healthy_cycles.count(s.sequence) != 0 &&
+        s.complete) {
+      max_before = std::max(max_before, Cells(s.occupied) + Cells(s.occluded));
+      ++before;
+    } else if (s.stamp_ns > stop_ns + 500'000'000LL) {
+      min_after = std::min(min_after, Cells(s.occupied) + Cells(s.occluded));
+      max_after = std::max(max_after, Cells(s.occupied));
+      ++after;
+    }
+  }
+  EXPECT_EQ(free, 0);
+  ASSERT_GT(before, 5U) << daemon.Log();
+  ASSERT_GT(after, 5U) << daemon.Log();
+  EXPECT_GE(min_after, max_before) << "losing a camera must never free space";
+
+  // Status: ok before, degraded with camera 3 stale (state 2) after.
+  bool healthy_seen = false, degraded_seen = false;
+  for (const StatusSample& st : controller.status_samples) {
+    if (!st.degraded) healthy_seen = true;
+    if (st.degraded && st.camera_states.size() == 4 && st.camera_states[3] == 2) {
+      degraded_seen = true;
+    }
+  }
+  EXPECT_TRUE(healthy_seen);
+  EXPECT_TRUE(degraded_seen) << daemon.Log();
+  // The daemon's log names the stale camera within the timeout (200 ms) plus
+  // a reporting period.
+  EXPECT_NE(daemon.Log().find("cam3 stale"), std::string::npos) << daemon.Log();
+}
+
+TEST_F(DaemonE2E, BadConfigExitsTwoNamingKeyAndLine) {
+  std::string text = ReadFile(g_source_dir + "/config/demo.yaml");
+  text = Replace(text, "  deadline_ms: 25", "  deadline_ms: 25\n  jitter_ms: 3");
+  const std::string config = (dir_ / "bad.yaml").string();
+  std::ofstream(config) << text;
+  const testing::ProcessResult r = testing::RunTool(g_daemon, "--config " + config);
+  EXPECT_EQ(r.code, 2);
+  const std::size_t line = std::count(text.begin(), text.begin() + text.find("jitter_ms"), '\n');
+  EXPECT_NE(r.err.find(config + ":" + std::to_string(line + 1) + ": timing"), std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("unknown key 'jitter_ms'"), std::string::npos) << r.err;
+}
+
+}  // namespace
+}  // namespace hg
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  if (argc != 3) {
+    std::fprintf(stderr, "usage: daemon_e2e_test HULLGUARDD SOURCE_DIR\n");
+    return 2;
+  }
+  hg::g_daemon = argv[1];
+  hg::g_source_dir = argv[2];
+  return RUN_ALL_TESTS();
+}

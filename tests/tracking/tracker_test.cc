@@ -1,0 +1,268 @@
+#include "tracking/tracker.h"
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "common/config_error.h"
+#include "scene/demo_cell.h"
+
+namespace hg::tracking {
+namespace {
+
+using Eigen::Vector3d;
+
+constexpr double kDt = 1.0 / 30.0;
+
+std::int64_t StampNs(int frame) { return static_cast<std::int64_t>(frame) * 33'333'333; }
+
+VoxelGrid CellGrid() { return VoxelGrid({Vector3d::Zero(), Vector3d(4, 4, 2.2)}, 0.04); }
+
+Ellipsoid Person(const Vector3d& centre) { return {centre, Vector3d(0.25, 0.2, 0.85)}; }
+
+// UNKNOWN voxels of the blobs, leaving out voxels `hidden` says no camera sees.
+template <typename Hidden>
+void SetBlobs(Tracker* tracker, const std::vector<Ellipsoid>& blobs, Hidden hidden) {
+  const VoxelGrid& g = tracker->voxel_map().grid();
+  std::vector<std::uint32_t> all, visible;
+  for (const Ellipsoid& b : blobs) AppendVoxelsInside(g, b, &all);
+  for (const std::uint32_t i : all) {
+    const Eigen::Vector3i c = g.Coords(i);
+    if (!hidden(g.Centre(c.x(), c.y(), c.z()))) visible.push_back(i);
+  }
+  tracker->voxel_map().SetUnknown(visible);
+}
+
+void SetBlobs(Tracker* tracker, const std::vector<Ellipsoid>& blobs) {
+  SetBlobs(tracker, blobs, [](const Vector3d&) { return false; });
+}
+
+Tracker OpenCellTracker(const TrackerOptions& options = {}) {
+  const VoxelGrid g = CellGrid();
+  return Tracker(options, VoxelMap(g, std::vector<VoxelState>(g.size(), VoxelState::kFree)),
+                 CollisionWorld());
+}
+
+const Track* Nearest(const std::vector<Track>& tracks, const Vector3d& p) {
+  const Track* best = nullptr;
+  for (const Track& t : tracks) {
+    if (best == nullptr || (t.centre_W - p).norm() < (best->centre_W - p).norm()) best = &t;
+  }
+  return best;
+}
+
+TEST(TrackerOptionsTest, EveryProblemIsReported) {
+  TrackerOptions o;
+  EXPECT_TRUE(CheckOptions(o).empty());
+  o.voxel_m = 0.0;
+  o.filter.collision_radius_m = 0.5;  // Not smaller than the half-axes.
+  o.occluded_min_share = 1.5;
+  const std::vector<OptionProblem> p = CheckOptions(o);
+  ASSERT_EQ(p.size(), 3u);
+  EXPECT_EQ(p[0].key, "voxel_m");
+  EXPECT_EQ(p[1].key, "filter.collision_radius_m");
+  EXPECT_EQ(p[2].key, "occluded_min_share");
+  try {
+    OpenCellTracker(o);
+    FAIL() << "no exception";
+  } catch (const common::ConfigError& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("voxel_m: must be > 0"), std::string::npos) << m;
+    EXPECT_NE(m.find("filter.collision_radius_m"), std::string::npos) << m;
+    EXPECT_NE(m.find("occluded_min_share"), std::string::npos) << m;
+  }
+}
+
+// A person walks in through one side of the cell and out through the other;
+// later another enters and gets a new id.
+TEST(TrackerTest, BirthOnEntryDeathOnExit) {
+  Tracker tracker = OpenCellTracker();
+  int frame = 0;
+  const Vector3d velocity(1.2, 0.0, 0.0);
+  for (int k = 0; k <= 120; ++k, ++frame) {
+    const Vector3d c = Vector3d(-0.4, 2.0, 0.9) + velocity * (k * kDt);
+    SetBlobs(&tracker, {Person(c)});
+    tracker.Step(StampNs(frame));
+    const auto& tracks = tracker.tracks();
+    ASSERT_LE(tracks.size(), 1u) << "frame " << frame;
+    if (c.x() > 0.5 && c.x() < 3.5) {
+      ASSERT_EQ(tracks.size(), 1u) << "frame " << frame;
+      EXPECT_EQ(tracks[0].id, 1u);
+      EXPECT_LT((tracks[0].centre_W - c).norm(), 0.1) << "frame " << frame;
+      EXPECT_FALSE(tracks[0].occluded);
+      EXPECT_EQ(tracks[0].time_since_support_s, 0.0);
+    }
+    if (c.x() > 1.5 && c.x() < 3.0) {
+      EXPECT_LT((tracks[0].velocity_W_mps - velocity).norm(), 0.4) << "frame " << frame;
+    }
+  }
+  // Gone: the track dies within the death timeout.
+  for (int k = 0; k < 40; ++k, ++frame) {
+    SetBlobs(&tracker, {});
+    tracker.Step(StampNs(frame));
+  }
+  EXPECT_TRUE(tracker.tracks().empty());
+  EXPECT_EQ(tracker.stats().births, 1u);
+  EXPECT_EQ(tracker.stats().deaths, 1u);
+  // Someone else enters from the far side in y.
+  for (int k = 0; k <= 30; ++k, ++frame) {
+    SetBlobs(&tracker, {Person(Vector3d(2.0, 4.3 - 1.2 * k * kDt, 0.9))});
+    tracker.Step(StampNs(frame));
+  }
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  EXPECT_EQ(tracker.tracks()[0].id, 2u);
+  EXPECT_EQ(tracker.stats().births, 2u);
+}
+
+// Two people walk past each other shoulder to shoulder (their blobs touch and
+// form one component while they pass): neither id swaps nor merges.
+TEST(TrackerTest, TwoPeoplePassingKeepTheirIds) {
+  Tracker tracker = OpenCellTracker();
+  const Vector3d a0(0.6, 1.8, 0.9), b0(3.4, 2.2, 0.9);
+  const Vector3d va(1.2, 0.0, 0.0), vb(-1.2, 0.0, 0.0);
+  std::uint32_t id_a = 0, id_b = 0;
+  double worst = 0.0;
+  for (int k = 0; k <= 70; ++k) {
+    const Vector3d a = a0 + va * (k * kDt), b = b0 + vb * (k * kDt);
+    SetBlobs(&tracker, {Person(a), Person(b)});
+    tracker.Step(StampNs(k));
+    const auto& tracks = tracker.tracks();
+    ASSERT_EQ(tracks.size(), 2u) << "frame " << k;
+    if (k == 0) {
+      id_a = Nearest(tracks, a)->id;
+      id_b = Nearest(tracks, b)->id;
+      ASSERT_NE(id_a, id_b);
+      continue;
+    }
+    ASSERT_EQ(Nearest(tracks, a)->id, id_a) << "frame " << k;
+    ASSERT_EQ(Nearest(tracks, b)->id, id_b) << "frame " << k;
+    for (const Track& t : tracks) {
+      const Vector3d& truth = t.id == id_a ? a : b;
+      if (k > 10) worst = std::max(worst, (t.centre_W - truth).norm());
+    }
+  }
+  EXPECT_LT(worst, 0.1);
+  EXPECT_EQ(tracker.stats().births, 2u);
+  EXPECT_EQ(tracker.stats().deaths, 0u);
+}
+
+// A person crawls under a table: under the top nobody sees (OCCLUDED), so the
+// UNKNOWN blob shrinks to nothing and grows again on the far side. The track
+// stays alive (occluded) and keeps its id.
+TEST(TrackerTest, CrawlUnderATableKeepsTheTrack) {
+  const VoxelGrid g = CellGrid();
+  const Vector3d table_min(1.4, 1.4, 0.0), table_max(2.6, 2.6, 0.95);
+  auto under_table = [&](const Vector3d& p) {
+    return p.x() >= table_min.x() && p.x() <= table_max.x() && p.y() >= table_min.y() &&
+           p.y() <= table_max.y() && p.z() < 0.9;
+  };
+  std::vector<VoxelState> states(g.size(), VoxelState::kFree);
+  for (int z = 0; z < g.nz(); ++z) {
+    for (int y = 0; y < g.ny(); ++y) {
+      for (int x = 0; x < g.nx(); ++x) {
+        const Vector3d p = g.Centre(x, y, z);
+        if (under_table(p)) states[g.Index(x, y, z)] = VoxelState::kOccluded;
+        if (p.z() >= 0.9 && p.z() <= 0.95 && p.x() >= 1.4 && p.x() <= 2.6 && p.y() >= 1.4 &&
+            p.y() <= 2.6) {
+          states[g.Index(x, y, z)] = VoxelState::kKnown;
+        }
+      }
+    }
+  }
+  std::vector<CollisionShape> shapes;
+  sim::BoxSolid top;
+  top.centre_W = {2.0, 2.0, 0.925};
+  top.half_extents_m = {0.6, 0.6, 0.025};
+  shapes.emplace_back(top);
+  for (const double x : {1.43, 2.57}) {
+    for (const double y : {1.43, 2.57}) {
+      sim::BoxSolid leg;
+      leg.centre_W = {x, y, 0.45};
+      leg.half_extents_m = {0.03, 0.03, 0.45};
+      shapes.emplace_back(leg);
+    }
+  }
+  Tracker tracker(TrackerOptions{}, VoxelMap(g, states), CollisionWorld(shapes));
+
+  const Vector3d half(0.45, 0.25, 0.3);  // On all fours, along x.
+  const double speed = 0.4;
+  bool seen_occluded = false;
+  std::uint32_t id = 0;
+  int frame = 0;
+  Vector3d c;
+  for (; frame <= 255; ++frame) {
+    const double x = std::min(0.5 + speed * frame * kDt, 3.5);  // Then waits at 3.5.
+    c = Vector3d(x, 2.0, 0.32);
+    SetBlobs(&tracker, {{c, half}}, under_table);
+    tracker.Step(StampNs(frame));
+    const auto& tracks = tracker.tracks();
+    ASSERT_EQ(tracks.size(), 1u) << "frame " << frame;
+    if (frame == 0) id = tracks[0].id;
+    ASSERT_EQ(tracks[0].id, id) << "frame " << frame;
+    const bool hidden = x - half.x() > 1.4 && x + half.x() < 2.6;
+    if (hidden) seen_occluded = seen_occluded || tracks[0].occluded;
+    if (!hidden && x < 1.0) {
+      EXPECT_FALSE(tracks[0].occluded);
+    }
+  }
+  EXPECT_TRUE(seen_occluded);
+  EXPECT_EQ(tracker.stats().births, 1u);
+  EXPECT_EQ(tracker.stats().deaths, 0u);
+  EXPECT_LT((tracker.tracks()[0].centre_W - c).norm(), 0.05);
+  EXPECT_FALSE(tracker.tracks()[0].occluded);
+}
+
+// The daemon's path: static states from cameras and obstacles, UNKNOWN from
+// the snapshot's occupied runs.
+TEST(TrackerTest, TracksFromSnapshots) {
+  StaticScene scene;
+  scene.cameras.push_back(scene::LookAtCamera({2, 2.01, 3.5}, {2, 2, 0}, 640, 480, 300));
+  sim::BoxSolid rack;
+  rack.centre_W = {3.5, 0.5, 1.0};
+  rack.half_extents_m = {0.3, 0.3, 1.0};
+  scene.solids.emplace_back(rack);
+  const common::Box3 bounds{Vector3d::Zero(), Vector3d(4, 4, 2.2)};
+  Tracker tracker(TrackerOptions{}, bounds, scene);
+  EXPECT_EQ(tracker.collision_world().shapes().size(), 1u);
+
+  pipeline::OccupancySnapshot snap;
+  snap.bounds = {Vector3d::Zero(), Vector3d(4, 4, 4)};
+  snap.depth = 7;
+  const double cell = 4.0 / 128;
+  const Vector3d velocity(0.0, 0.8, 0.0);
+  Vector3d c;
+  for (int frame = 0; frame < 45; ++frame) {
+    c = Vector3d(1.5, 1.0, 0.9) + velocity * (frame * kDt);
+    const Ellipsoid blob = Person(c);
+    snap.occupied.clear();
+    for (int z = 0; z < 128; ++z) {
+      for (int y = 0; y < 128; ++y) {
+        int run_start = -1;
+        for (int x = 0; x <= 128; ++x) {
+          const bool in =
+              x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell, (z + 0.5) * cell));
+          if (in && run_start < 0) run_start = x;
+          if (!in && run_start >= 0) {
+            snap.occupied.push_back({static_cast<std::uint16_t>(run_start),
+                                     static_cast<std::uint16_t>(y), static_cast<std::uint16_t>(z),
+                                     static_cast<std::uint16_t>(x - run_start)});
+            run_start = -1;
+          }
+        }
+      }
+    }
+    snap.stamp_ns = 1'000'000'000 + StampNs(frame);
+    tracker.Update(snap);
+  }
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  const Track& t = tracker.tracks()[0];
+  EXPECT_LT((t.centre_W - c).norm(), 0.05);
+  EXPECT_LT((t.velocity_W_mps - velocity).norm(), 0.3);
+  EXPECT_NEAR(t.age_s, 44 * kDt, 1e-6);
+  EXPECT_FALSE(t.occluded);
+}
+
+}  // namespace
+}  // namespace hg::tracking
