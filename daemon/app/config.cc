@@ -331,6 +331,25 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
     {.key = "shadows_are_foreground",
      .member = &BackgroundConfig::shadows_are_foreground,
      .meaning = "Count shadows as foreground (conservative: a shadow may hide a person's edge)."},
+    {.key = "noise_sigmas",
+     .member = &BackgroundConfig::noise_sigmas,
+     .meaning = "A pixel's threshold is at least this many times its noise (sigma) learned at "
+                "start-up.",
+     .limits = {0, 100}},
+    {.key = "max_threshold",
+     .member = &BackgroundConfig::max_threshold,
+     .meaning = "Pixels whose threshold would exceed this (flicker, a monitor in view) are always "
+                "foreground: nothing can be certified free there.",
+     .limits = {1, 255}},
+    {.key = "guard_px",
+     .member = &BackgroundConfig::guard_px,
+     .meaning = "The model adapts only this far (pixels) or farther from any foreground pixel, so "
+                "a person standing still is never absorbed.",
+     .limits = {0, 1000}},
+    {.key = "compensate_gain",
+     .member = &BackgroundConfig::compensate_gain,
+     .meaning = "Follow global light changes: one gain per frame, estimated from background "
+                "pixels, scales the model before comparing."},
 };
 
 const Field<ObstacleConfig> kObstacleFields[] = {
@@ -979,7 +998,22 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   const bool timing_read = r.error_count() == errors_before_timing;
   ReadSection<ThreadsConfig>(r, sections, "threads", kThreadsFields, &config.threads);
   ReadSection<MotionConfig>(r, sections, "motion", kMotionFields, &config.motion);
+  const std::size_t errors_before_background = r.error_count();
   ReadSection<BackgroundConfig>(r, sections, "background", kBackgroundFields, &config.background);
+  if (r.error_count() == errors_before_background &&
+      config.background.max_threshold < config.background.threshold) {
+    int line = 0;
+    if (const auto it = sections.find("background");
+        it != sections.end() && it->second.value.IsMap()) {
+      for (const auto& kv : it->second.value) {
+        if (kv.first.IsScalar() && kv.first.Scalar() == "max_threshold") {
+          line = common::YamlLine(kv.first);
+        }
+      }
+    }
+    r.Error(line, "background.max_threshold",
+            "must be >= background.threshold = " + std::to_string(config.background.threshold));
+  }
   ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);
   ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
 

@@ -127,6 +127,10 @@ struct BackgroundConfig {
   int threshold = 25;                  ///< Foreground above this difference (grey levels).
   double adapt_rate = 0.01;            ///< Per-frame blend of background pixels into the model.
   bool shadows_are_foreground = true;  ///< Conservative: a shadow may hide a person's edge.
+  double noise_sigmas = 4.0;    ///< Per-pixel threshold: at least this many learned noise sigmas.
+  int max_threshold = 64;       ///< Pixels noisier than this are always foreground.
+  int guard_px = 8;             ///< No adaptation this close to foreground.
+  bool compensate_gain = true;  ///< Follow global light changes with one gain per frame.
 };
 
 /// A static obstacle mesh (OBJ or STL).

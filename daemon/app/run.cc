@@ -67,6 +67,10 @@ silhouette::BackgroundModelOptions BackgroundOptions(const BackgroundConfig& b) 
   o.min_threshold = b.threshold;
   o.adapt_rate = b.adapt_rate;
   o.shadows_are_foreground = b.shadows_are_foreground;
+  o.noise_sigmas = b.noise_sigmas;
+  o.max_threshold = b.max_threshold;
+  o.guard_px = b.guard_px;
+  o.compensate_gain = b.compensate_gain;
   return o;
 }
 

@@ -29,6 +29,9 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
                    common::Heartbeats* heartbeats)
     : options_(options), consumer_(std::move(consumer)), heartbeats_(heartbeats) {
   options_.publish_depth = std::clamp(options_.publish_depth, 1, std::min(options_.depth, 10));
+  // Background models are made on a camera's first image frame, on its capture
+  // thread; bad options must fail here, at start-up, instead.
+  silhouette::ValidateBackgroundModelOptions(options_.background);
   std::vector<octree::CameraView> views;
   for (PipelineCamera& c : cameras) {
     auto runtime = std::make_unique<CameraRuntime>(c.model, std::move(c.source), c.timeout_ms);

@@ -65,7 +65,7 @@ cameras:
     position: [4, 4, 2]
     look_at: [2, 2, 1]
     source: {type: v4l2, device: /dev/video2, format: MJPEG, frame_rate_hz: 15, exposure: 120}
-background: {learn_frames: 50, threshold: 30, adapt_rate: 0.05, shadows_are_foreground: false}
+background: {learn_frames: 50, threshold: 30, adapt_rate: 0.05, shadows_are_foreground: false, max_threshold: 40}
 obstacles:
   - file: demo_cell/obstacles.obj
 dds: {domain_id: 7, topic_prefix: cell7, enabled: false}
@@ -296,6 +296,8 @@ const Mistake kMistakes[] = {
     {"domain_id: 7", "domain_id: 233", 47, "dds.domain_id", "must be in 0 .. 232"},
     {"level: debug", "level: loud", 48, "logging.level", "unknown value 'loud'"},
     {"logging:", "loging:", 48, "", "unknown key 'loging'"},
+    {"max_threshold: 40", "max_threshold: 20", 44, "background.max_threshold",
+     "must be >= background.threshold = 30"},
     {"publish_depth: 6", "publish_depth: 9", 3, "octree.publish_depth", "<= octree.depth = 8"},
     {"max_speed_mps: 1.6", "max_speed_mps: -1", 49, "motion.max_speed_mps", "must be in 0 .. 20"},
     {"min_camera_distance_m: 1.5", "min_camera_dist: 1.5", 49, "motion",
