@@ -350,6 +350,11 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
      .member = &BackgroundConfig::compensate_gain,
      .meaning = "Follow global light changes: one gain per frame, estimated from background "
                 "pixels, scales the model before comparing."},
+    {.key = "dilate_px",
+     .member = &BackgroundConfig::dilate_px,
+     .meaning = "The foreground is grown by this many pixels, so that a person's pixel whose "
+                "colour matches the background is covered by its neighbours.",
+     .limits = {0, 50}},
 };
 
 const Field<ObstacleConfig> kObstacleFields[] = {

@@ -131,6 +131,7 @@ struct BackgroundConfig {
   int max_threshold = 64;       ///< Pixels noisier than this are always foreground.
   int guard_px = 8;             ///< No adaptation this close to foreground.
   bool compensate_gain = true;  ///< Follow global light changes with one gain per frame.
+  int dilate_px = 2;            ///< Foreground grown by this many pixels.
 };
 
 /// A static obstacle mesh (OBJ or STL).

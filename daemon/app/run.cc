@@ -88,6 +88,7 @@ int RunPipeline(const Config& config, double duration_s) {
   options.max_speed_mps = config.motion.max_speed_mps;
   options.min_camera_distance_m = config.motion.min_camera_distance_m;
   options.background = BackgroundOptions(config.background);
+  options.background_dilate_px = config.background.dilate_px;
 
   std::vector<geometry::TriangleMesh> obstacles;
   for (const ObstacleConfig& o : config.obstacles) obstacles.push_back(geometry::LoadMesh(o.file));

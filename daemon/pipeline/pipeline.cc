@@ -4,6 +4,8 @@
 #include <bit>
 #include <chrono>
 
+#include <opencv2/imgproc.hpp>
+
 #include "octree/camera_view.h"
 #include "silhouette/tile_dilation.h"
 
@@ -78,6 +80,8 @@ void Pipeline::CaptureLoop(int camera) {
   CameraRuntime& c = *cameras_[camera];
   capture::Frame frame;
   common::ImageU8 foreground;  // Background model output (image sources only).
+  const int k = 2 * std::max(0, options_.background_dilate_px) + 1;
+  const cv::Mat dilate_kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
     if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
@@ -91,6 +95,10 @@ void Pipeline::CaptureLoop(int camera) {
         c.background->Apply(frame.rgb, &foreground);
       } else {
         c.background->Apply(frame.grey, &foreground);
+      }
+      if (options_.background_dilate_px > 0) {
+        cv::Mat m(foreground.height, foreground.width, CV_8UC1, foreground.pixels.data());
+        cv::dilate(m, m, dilate_kernel);
       }
       mask = &foreground;
     }

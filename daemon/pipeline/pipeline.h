@@ -43,6 +43,10 @@ struct PipelineOptions {
   double min_camera_distance_m = 1.0;
   /// Turns image frames (colour or Mono8 sources) into silhouettes.
   silhouette::BackgroundModelOptions background;
+  /// The background model's foreground is grown by this many pixels: a
+  /// person's pixel whose colour happens to match the background is covered
+  /// by its neighbours (holes and ragged edges of the silhouette).
+  int background_dilate_px = 2;
 };
 
 struct PipelineCamera {

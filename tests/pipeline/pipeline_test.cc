@@ -19,6 +19,7 @@
 #include "common/config_error.h"
 #include "common/latest_value.h"
 #include "silhouette/mask_io.h"
+#include "sim/colour_renderer.h"
 #include "support/sim_bodies.h"
 
 namespace hg::pipeline {
@@ -264,6 +265,79 @@ TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
   EXPECT_EQ(source.corrupt_frames(), 1U);
   EXPECT_FALSE(source.Next(&frame, 100ms)) << "the recording has ended";
   fs::remove_all(dir);
+}
+
+// The colour path: a recording of colour frames (the empty cell first, then
+// two people standing) replayed through the background model. Once the model
+// has learned the empty cell, every point of the people is occupied.
+TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
+  namespace fs = std::filesystem;
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  sim::Scene empty = *scene;
+  empty.people.clear();
+  constexpr int kEmptyFrames = 36, kFrames = 75;
+  const fs::path dir = fs::temp_directory_path() / ("hg_colour_" + std::to_string(getpid()));
+  std::ofstream manifest(dir / "manifest.yaml");
+  fs::create_directories(dir);
+  std::ofstream(dir / "manifest.yaml")
+      << "synth: {format: 1, scene: standing, rate_hz: 30, start_s: 0, frames: " << kFrames
+      << ", masks: false, colour: true}\ncameras:\n";
+  std::vector<sim::BodyState> people;
+  for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
+  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+    const std::string name = scene->cameras[c].model.name;
+    std::ofstream(dir / "manifest.yaml", std::ios::app) << "  - {name: " << name << "}\n";
+    fs::create_directories(dir / "colour" / name);
+    const sim::ColourRenderer with_people(*scene, c), without(empty, c);
+    common::ImageRgb8 image;
+    for (int i = 0; i < kFrames; ++i) {
+      if (i < kEmptyFrames) {
+        without.Render({}, i / 30.0, static_cast<std::uint64_t>(i), &image);
+      } else {
+        with_people.Render(people, i / 30.0, static_cast<std::uint64_t>(i), &image);
+      }
+      char file[16];
+      std::snprintf(file, sizeof(file), "%06d.png", i);
+      silhouette::WriteRgbImage((dir / "colour" / name / file).string(), image);
+    }
+  }
+
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 7;
+  options.publish_depth = 6;
+  options.deadline_ms = 30;
+  options.background.learn_frames = 20;
+  const capture::SimClock clock = capture::SimClock::Now();
+  std::vector<PipelineCamera> cameras;
+  for (const sim::SceneCamera& c : scene->cameras) {
+    cameras.push_back({c.model,
+                       std::make_unique<capture::ReplaySource>(
+                           capture::ReadRecordingCamera(dir.string(), c.model.name), clock),
+                       150});
+  }
+  Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+  pipeline.Start();
+  const std::int64_t people_from = clock.epoch_ns + (kEmptyFrames + 3) * 1'000'000'000LL / 30;
+  int checked = 0, free = 0;
+  std::uint64_t seen = 0;
+  const auto give_up = std::chrono::steady_clock::now() + 10s;
+  while (std::chrono::steady_clock::now() < give_up && checked < 10) {
+    const auto s = pipeline.Latest();
+    if (s && s->sequence != seen && s->stamp_ns > people_from && !s->health.degraded) {
+      seen = s->sequence;
+      free += testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 100, seen),
+                                             s->bounds.min, s->bounds.max, s->depth,
+                                             {&s->occupied, &s->occluded});
+      EXPECT_GT(OccupancySnapshot::Cells(s->occupied), 0U);
+      ++checked;
+    }
+    std::this_thread::sleep_for(5ms);
+  }
+  pipeline.Stop();
+  fs::remove_all(dir);
+  EXPECT_EQ(checked, 10);
+  EXPECT_EQ(free, 0);
 }
 
 }  // namespace
