@@ -116,8 +116,8 @@ double SegmentBoxDistanceSquared(const Vector3d& p0, const Vector3d& p1, const s
     }
     double t = t0;
     if (qa > 0.0) t = std::clamp(-qb / (2.0 * qa), t0, t1);
-    best = std::min({best, PointBoxDistanceSquared(p + t * d, h),
-                     PointBoxDistanceSquared(p + t1 * d, h)});
+    best = std::min(
+        {best, PointBoxDistanceSquared(p + t * d, h), PointBoxDistanceSquared(p + t1 * d, h)});
   }
   return best;
 }

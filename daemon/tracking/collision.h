@@ -28,8 +28,7 @@ using CollisionShape = std::variant<sim::BoxSolid, sim::CylinderSolid, sim::Caps
 /// they intersect). Exact up to rounding: the squared distance along the
 /// segment is a convex piecewise quadratic whose pieces break where the point
 /// crosses a face plane; each piece is minimised in closed form.
-[[nodiscard]] double SegmentBoxDistanceSquared(const Eigen::Vector3d& p0,
-                                               const Eigen::Vector3d& p1,
+[[nodiscard]] double SegmentBoxDistanceSquared(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
                                                const sim::BoxSolid& box);
 
 /// Distance from a point to the solid cylinder (0 inside). A cylinder whose
@@ -50,8 +49,8 @@ using CollisionShape = std::variant<sim::BoxSolid, sim::CylinderSolid, sim::Caps
 
 /// True when the capsule p0-p1 of `radius` touches or overlaps the shape
 /// (distance <= radius; touching counts as a hit).
-[[nodiscard]] bool CapsuleHits(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1,
-                               double radius, const CollisionShape& shape);
+[[nodiscard]] bool CapsuleHits(const Eigen::Vector3d& p0, const Eigen::Vector3d& p1, double radius,
+                               const CollisionShape& shape);
 
 /// Axis-aligned bounds of a shape (for a cylinder, of the capsule around it).
 [[nodiscard]] common::Box3 ShapeBounds(const CollisionShape& shape);

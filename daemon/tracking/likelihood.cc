@@ -2,10 +2,22 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <numbers>
 
 namespace hg::tracking {
 namespace {
+
+/// Floor and ceiling of |x| < 2^31 without a libm call (x86-64 without
+/// SSE4.1 has no rounding instruction).
+inline int FloorInt(double x) {
+  const int i = static_cast<int>(x);
+  return i - (x < i ? 1 : 0);
+}
+inline int CeilInt(double x) {
+  const int i = static_cast<int>(x);
+  return i + (x > i ? 1 : 0);
+}
 
 /// Closed-form x extent of one row of a region: voxels [lo, hi].
 struct Span {
@@ -30,49 +42,186 @@ void ClipToHalfSpace(const VoxelGrid& g, const HalfSpace& h, double py, double p
   const double t = ((h.offset - s) / nx - g.origin().x()) / g.voxel_m() - 0.5;
   const double clamped = std::clamp(t, span->lo - 1.0, span->hi + 1.0);
   if (nx > 0.0) {  // Inside for small x: find the last inside voxel.
-    int a = static_cast<int>(std::clamp(std::floor(clamped), span->lo - 1.0, static_cast<double>(span->hi)));
+    int a = std::clamp(FloorInt(clamped), span->lo - 1, span->hi);
     while (a >= span->lo && !inside(a)) --a;
     while (a + 1 <= span->hi && inside(a + 1)) ++a;
     span->hi = a;
   } else {  // Inside for large x: find the first inside voxel.
-    int a = static_cast<int>(std::clamp(std::ceil(clamped), static_cast<double>(span->lo), span->hi + 1.0));
+    int a = std::clamp(CeilInt(clamped), span->lo, span->hi + 1);
     while (a <= span->hi && !inside(a)) ++a;
     while (a - 1 >= span->lo && inside(a - 1)) --a;
     span->lo = a;
   }
 }
 
+/// One ellipsoid prepared for the row loops: reciprocals and the centre and
+/// x half-axis in voxel index units (voxel i's centre sits at index i).
+struct Prepared {
+  Eigen::Vector3d c;
+  Eigen::Vector3d inv_h;  // 1 / half-axes: the same values Ellipsoid::Contains uses.
+  Eigen::Vector3d c_idx;  // (c - origin) / voxel - 0.5.
+  Eigen::Vector3d h_idx;  // half-axes / voxel.
+  double tol = 0.0;
+};
+
+/// Floor of -2^30 < x < 2^30 with one conversion: exact, except that x within
+/// 2^-22 below an integer may round up to it. Callers treat every x within
+/// their tolerance (>= 1e-6) of an integer as ambiguous and re-test it.
+inline int FastFloor(double x) {
+  constexpr double kOffset = 1073741824.0;  // 2^30: 0 < x + kOffset < 2^31, truncation floors.
+  return static_cast<int>(x + kOffset) - 1073741824;
+}
+
 /// Voxels x (unclamped) of one row whose centres satisfy dx^2 + q <= 1, with
 /// dx = (CentreX(x) - cx) / k: the closed-form ends, re-tested with that
 /// predicate where they fall within `tol` of a voxel centre. Precondition: q <= 1.
-Span RowSpan(const VoxelGrid& g, double cx, double k, double q, double tol) {
+inline Span RowSpan(const VoxelGrid& g, const Prepared& e, double q) {
+  const double w = std::sqrt(1.0 - q) * e.h_idx.x();
+  const double t_lo = e.c_idx.x() - w;
+  const double t_hi = e.c_idx.x() + w;
   auto inside = [&](int x) {
-    const double dx = (g.CentreX(x) - cx) / k;
+    const double dx = (g.CentreX(x) - e.c.x()) * e.inv_h.x();
     return dx * dx + q <= 1.0;
   };
-  const double w = std::sqrt(1.0 - q) * k;
-  // Clamped far outside any grid so the casts stay in range.
-  const double t_lo = std::clamp((cx - w - g.origin().x()) / g.voxel_m() - 0.5, -1e9, 1e9);
-  const double t_hi = std::clamp((cx + w - g.origin().x()) / g.voxel_m() - 0.5, -1e9, 1e9);
-  Span span{static_cast<int>(std::ceil(t_lo)), static_cast<int>(std::floor(t_hi))};
-  const double j_lo = std::nearbyint(t_lo);
-  if (std::abs(t_lo - j_lo) < tol) {
-    const int j = static_cast<int>(j_lo);
+  // First centre at or after t_lo, last at or before t_hi.
+  const int f_lo = FastFloor(t_lo);
+  const double r_lo = t_lo - f_lo;
+  Span span{f_lo + 1, 0};
+  if (r_lo < e.tol || r_lo > 1.0 - e.tol) {
+    const int j = r_lo < 0.5 ? f_lo : f_lo + 1;
     span.lo = inside(j) ? j : j + 1;
   }
-  const double j_hi = std::nearbyint(t_hi);
-  if (std::abs(t_hi - j_hi) < tol) {
-    const int j = static_cast<int>(j_hi);
+  const int f_hi = FastFloor(t_hi);
+  const double r_hi = t_hi - f_hi;
+  span.hi = f_hi;
+  if (r_hi < e.tol || r_hi > 1.0 - e.tol) {
+    const int j = r_hi < 0.5 ? f_hi : f_hi + 1;
     span.hi = inside(j) ? j : j - 1;
   }
   return span;
 }
 
+/// Rows of one ellipsoid, gathered layer by layer and solved together: the
+/// floating-point loop (square roots and conversions included) runs over many
+/// rows at once and vectorises; the counting loop then does integer work only.
+constexpr int kChunkRows = 256;
+struct RowChunk {
+  int n = 0;
+  int y[kChunkRows];
+  int z[kChunkRows];
+  std::int64_t prefix[kChunkRows];  // Offset of the row's prefix counts (z >= 0).
+  double dz2[kChunkRows];
+  double q[kChunkRows];
+  int lo[kChunkRows];
+  int hi[kChunkRows];
+  int ambiguous[kChunkRows];  // An end within tol of a voxel centre: use RowSpan.
+};
+
+/// Per row: q = dy^2 + dz^2 and the voxels [lo, hi] whose centres lie inside
+/// (unclamped; empty when q > 1 unless flagged ambiguous). Each end is the
+/// floor of the closed form shifted by -tol and by +tol: equal results mean no
+/// voxel centre within tol of the boundary, so the end is exact; different
+/// results flag the row for RowSpan. (FastFloor may round an argument within
+/// 2^-22 below an integer up, which can only make the two differ.)
+void SolveRows(const VoxelGrid& g, const Prepared& e, RowChunk* r) {
+  // Locals, so that the stores into *r cannot alias them.
+  const double origin_y = g.origin().y();
+  const double voxel = g.voxel_m();
+  const double cy = e.c.y();
+  const double inv_hy = e.inv_h.y();
+  const double cx_idx = e.c_idx.x();
+  const double hx_idx = e.h_idx.x();
+  const double tol = e.tol;
+  const int n = r->n;
+  for (int i = 0; i < n; ++i) {
+    // The same arithmetic as VoxelGrid::CentreY and Ellipsoid::Contains.
+    const double dy = (origin_y + (r->y[i] + 0.5) * voxel - cy) * inv_hy;
+    const double q = dy * dy + r->dz2[i];
+    const double w = std::sqrt(std::max(1.0 - q, 0.0)) * hx_idx;
+    const double t_lo = cx_idx - w;
+    const double t_hi = cx_idx + w;
+    const int lo_a = FastFloor(t_lo - tol);
+    const int lo_b = FastFloor(t_lo + tol);
+    const int hi_a = FastFloor(t_hi - tol);
+    const int hi_b = FastFloor(t_hi + tol);
+    r->q[i] = q;
+    r->lo[i] = lo_a + 1;
+    r->hi[i] = hi_a;
+    r->ambiguous[i] = (lo_a != lo_b ? 1 : 0) | (hi_a != hi_b ? 1 : 0);
+  }
+}
+
+/// Running sums of CountVoxels. Row differences are added packed and unpacked
+/// every RowCounts::kMaxSummedRows rows, before a field could overflow.
+struct Sums {
+  std::uint64_t packed = 0;
+  int packed_rows = 0;
+  int length = 0;
+  int unknown = 0;
+  int occluded = 0;
+  int known = 0;
+  int free = 0;
+  int foreign = 0;
+  int below_floor = 0;
+
+  void Flush() {
+    const int u = RowCounts::Unknown(packed);
+    const int o = RowCounts::Occluded(packed);
+    const int k = RowCounts::Known(packed);
+    unknown += u;
+    occluded += o;
+    known += k;
+    free += length - u - o - k;
+    packed = 0;
+    packed_rows = 0;
+    length = 0;
+  }
+};
+
+/// Counts the solved rows of a chunk into `sums`.
+void CountRows(const VoxelMap& map, const Prepared& e, std::span<const HalfSpace> own_region,
+               const RowChunk& r, Sums* out) {
+  const VoxelGrid& g = map.grid();
+  const int nx = g.nx();
+  const RowCounts* prefix = map.RowPrefix(0, 0);
+  Sums sums = *out;
+  for (int i = 0; i < r.n; ++i) {
+    Span span{r.lo[i], r.hi[i]};
+    if (r.ambiguous[i] != 0) {
+      // q > 1: dx^2 + q >= q > 1 also after rounding, no centre is inside.
+      if (r.q[i] > 1.0) continue;
+      span = RowSpan(g, e, r.q[i]);
+    }
+    if (r.z[i] < 0) {  // Below the grid: every lattice position counts.
+      if (span.hi >= span.lo) sums.below_floor += span.hi - span.lo + 1;
+      continue;
+    }
+    span.lo = std::max(span.lo, 0);
+    span.hi = std::min(span.hi, nx - 1);
+    if (span.lo > span.hi) continue;
+    const RowCounts* p = prefix + r.prefix[i];
+    const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
+    sums.packed += row;
+    sums.length += span.hi - span.lo + 1;
+    if (++sums.packed_rows == RowCounts::kMaxSummedRows) sums.Flush();
+    if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
+      Span own = span;
+      const double py = g.CentreY(r.y[i]);
+      const double pz = g.CentreZ(r.z[i]);
+      for (const HalfSpace& hs : own_region) {
+        ClipToHalfSpace(g, hs, py, pz, &own);
+        if (own.lo > own.hi) break;
+      }
+      const int own_unknown = own.lo > own.hi ? 0 : p[own.hi + 1].unknown() - p[own.lo].unknown();
+      sums.foreign += RowCounts::Unknown(row) - own_unknown;
+    }
+  }
+  *out = sums;
+}
+
 }  // namespace
 
-double Ellipsoid::Volume() const {
-  return 4.0 / 3.0 * std::numbers::pi * half_axes_m.prod();
-}
+double Ellipsoid::Volume() const { return 4.0 / 3.0 * std::numbers::pi * half_axes_m.prod(); }
 
 HalfSpace HalfSpace::NearerTo(const Eigen::Vector3d& own, const Eigen::Vector3d& other) {
   // |p - own|^2 <= |p - other|^2  <=>  2 (other - own) . p <= |other|^2 - |own|^2.
@@ -82,89 +231,76 @@ HalfSpace HalfSpace::NearerTo(const Eigen::Vector3d& own, const Eigen::Vector3d&
   return h;
 }
 
-EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& e,
+EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
                             std::span<const HalfSpace> own_region) {
   const VoxelGrid& g = map.grid();
-  const double v = g.voxel_m();
-  const Eigen::Vector3d& o = g.origin();
-  const Eigen::Vector3d& c = e.centre_W;
-  const Eigen::Vector3d& h = e.half_axes_m;
+  const Eigen::Vector3d& c = ellipsoid.centre_W;
+  const Eigen::Vector3d& h = ellipsoid.half_axes_m;
   EllipsoidCounts out;
   if (!(h.array() > 0.0).all() || !c.allFinite() || !h.allFinite()) return out;
-
-  // Index range [lo, hi] of the centres within c +- half along an axis, with one
-  // voxel of slack (rows outside the ellipsoid are skipped by the predicate),
-  // unclamped but kept far from integer overflow.
-  auto range = [&](int axis, double half, int* lo, int* hi) {
-    *lo = static_cast<int>(std::clamp(std::floor((c[axis] - half - o[axis]) / v - 0.5), -1e9, 1e9));
-    *hi = static_cast<int>(std::clamp(std::ceil((c[axis] + half - o[axis]) / v - 0.5), -1e9, 1e9));
-  };
+  const double inv_v = 1.0 / g.voxel_m();
+  Prepared e;
+  e.c = c;
+  e.inv_h = Eigen::Vector3d(1.0 / h.x(), 1.0 / h.y(), 1.0 / h.z());
+  e.c_idx = (c - g.origin()) * inv_v - Eigen::Vector3d::Constant(0.5);
+  e.h_idx = h * inv_v;
+  // Far away (or absurdly large): nothing of the grid or its floor is inside,
+  // and the index arithmetic below stays far from integer overflow.
+  if ((e.c_idx.cwiseAbs() + e.h_idx).maxCoeff() > 1e8) return out;
   // The closed-form row ends are trusted unless they fall within this many
   // voxels of a voxel centre; the predicate's rounding moves the boundary by at
   // most ~1.5e-8 * k / voxel there (at the tangent rows), far inside it.
-  const double tol = 1e-6 * (1.0 + h.x() / v);
-  const int nx = g.nx();
-  int z_lo, z_hi;
-  range(2, h.z(), &z_lo, &z_hi);
-  int foreign = 0;
-  for (int z = z_lo; z <= std::min(z_hi, g.nz() - 1); ++z) {
-    const double pz = g.CentreZ(z);
-    const double dz = (pz - c.z()) / h.z();
+  e.tol = 1e-6 * (1.0 + e.h_idx.x());
+
+  // Layers within the bounding box, and per layer the rows within its
+  // ellipse's bounding interval: floor/ceil of the closed-form bounds include
+  // every row the predicate can accept, and the predicate skips the rest.
+  const int z_lo = FloorInt(e.c_idx.z() - e.h_idx.z());
+  const int z_hi = std::min(CeilInt(e.c_idx.z() + e.h_idx.z()), g.nz() - 1);
+  RowChunk rows;
+  Sums sums;
+  auto flush_rows = [&] {
+    SolveRows(g, e, &rows);
+    CountRows(map, e, own_region, rows, &sums);
+    rows.n = 0;
+  };
+  for (int z = z_lo; z <= z_hi; ++z) {
+    const double dz = (g.CentreZ(z) - c.z()) * e.inv_h.z();
     const double dz2 = dz * dz;
     if (dz2 > 1.0) continue;
-    int y_lo, y_hi;
-    range(1, h.y() * std::sqrt(1.0 - dz2), &y_lo, &y_hi);
-    if (z < 0) {  // Below the grid: every lattice position counts, any x and y.
-      for (int y = y_lo; y <= y_hi; ++y) {
-        const double dy = (g.CentreY(y) - c.y()) / h.y();
-        const double q = dy * dy + dz2;
-        if (q > 1.0) continue;
-        const Span span = RowSpan(g, c.x(), h.x(), q, tol);
-        if (span.hi >= span.lo) out.below_floor += span.hi - span.lo + 1;
-      }
-      continue;
+    const double wy = std::sqrt(1.0 - dz2) * e.h_idx.y();
+    int y_lo = FloorInt(e.c_idx.y() - wy);
+    int y_hi = CeilInt(e.c_idx.y() + wy);
+    if (z >= 0) {  // Below the grid, rows beyond its sides count as well.
+      y_lo = std::max(y_lo, 0);
+      y_hi = std::min(y_hi, g.ny() - 1);
     }
-    for (int y = std::max(y_lo, 0); y <= std::min(y_hi, g.ny() - 1); ++y) {
-      const double py = g.CentreY(y);
-      const double dy = (py - c.y()) / h.y();
-      const double q = dy * dy + dz2;
-      if (q > 1.0) continue;  // dx^2 + q >= q > 1 also after rounding.
-      Span span = RowSpan(g, c.x(), h.x(), q, tol);
-      span.lo = std::max(span.lo, 0);
-      span.hi = std::min(span.hi, nx - 1);
-      if (span.lo > span.hi) continue;
-      const RowCounts* p = map.RowPrefix(y, z);
-      const RowCounts& a = p[span.lo];
-      const RowCounts& b = p[span.hi + 1];
-      const int unknown = b.unknown - a.unknown;
-      const int occluded = b.occluded - a.occluded;
-      const int known = b.known - a.known;
-      out.unknown += unknown;
-      out.occluded += occluded;
-      out.known += known;
-      out.free += (span.hi - span.lo + 1) - unknown - occluded - known;
-      if (!own_region.empty() && unknown > 0) {
-        Span own = span;
-        for (const HalfSpace& hs : own_region) {
-          ClipToHalfSpace(g, hs, py, pz, &own);
-          if (own.lo > own.hi) break;
-        }
-        const int own_unknown =
-            own.lo > own.hi ? 0 : p[own.hi + 1].unknown - p[own.lo].unknown;
-        foreign += unknown - own_unknown;
-      }
+    const std::int64_t stride = g.nx() + 1;
+    for (int y = y_lo; y <= y_hi; ++y) {
+      if (rows.n == kChunkRows) flush_rows();
+      rows.y[rows.n] = y;
+      rows.z[rows.n] = z;
+      rows.prefix[rows.n] = z >= 0 ? static_cast<std::int64_t>(g.Row(y, z)) * stride : 0;
+      rows.dz2[rows.n] = dz2;
+      ++rows.n;
     }
   }
-  out.unknown -= foreign;
-  out.foreign_unknown = foreign;
+  flush_rows();
+  sums.Flush();
+  out.unknown = sums.unknown - sums.foreign;
+  out.foreign_unknown = sums.foreign;
+  out.occluded = sums.occluded;
+  out.known = sums.known;
+  out.free = sums.free;
+  out.below_floor = sums.below_floor;
   return out;
 }
 
 void AppendVoxelsInside(const VoxelGrid& g, const Ellipsoid& e, std::vector<std::uint32_t>* out) {
   const Eigen::Vector3i lo = g.VoxelOf(e.centre_W - e.half_axes_m).cwiseMax(0);
   const Eigen::Vector3i hi =
-      g.VoxelOf(e.centre_W + e.half_axes_m).cwiseMin(Eigen::Vector3i(g.nx(), g.ny(), g.nz()) -
-                                                     Eigen::Vector3i::Ones());
+      g.VoxelOf(e.centre_W + e.half_axes_m)
+          .cwiseMin(Eigen::Vector3i(g.nx(), g.ny(), g.nz()) - Eigen::Vector3i::Ones());
   for (int z = lo.z(); z <= hi.z(); ++z) {
     for (int y = lo.y(); y <= hi.y(); ++y) {
       for (int x = lo.x(); x <= hi.x(); ++x) {

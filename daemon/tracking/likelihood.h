@@ -16,10 +16,10 @@ namespace hg::tracking {
 
 /// Per-voxel scores of the likelihood (the paper's rho, sigma, tau, epsilon).
 struct LikelihoodWeights {
-  double unknown = 1.0;    ///< rho: occupied, not an obstacle: evidence of a person.
-  double occluded = 0.1;   ///< sigma: nobody can see it: a person may hide there.
-  double known = -5.0;     ///< tau: inside an obstacle: no person.
-  double free = -0.1;      ///< epsilon: seen empty.
+  double unknown = 1.0;   ///< rho: occupied, not an obstacle: evidence of a person.
+  double occluded = 0.1;  ///< sigma: nobody can see it: a person may hide there.
+  double known = -5.0;    ///< tau: inside an obstacle: no person.
+  double free = -0.1;     ///< epsilon: seen empty.
   /// Lattice positions below the grid (its bottom is the cell's floor): no
   /// person there, scored like free space. Were they not counted, an
   /// ellipsoid could reach through the floor for free and its centre would
@@ -34,11 +34,12 @@ struct Ellipsoid {
   Eigen::Vector3d half_axes_m = Eigen::Vector3d::Ones();
 
   /// True iff p_W lies inside or on the ellipsoid. This is the membership test
-  /// of every voxel centre in the stage (same arithmetic, same rounding).
+  /// of every voxel centre in the stage (same arithmetic, same rounding; the
+  /// reciprocals let the likelihood hoist them out of its loops).
   [[nodiscard]] bool Contains(const Eigen::Vector3d& p_W) const {
-    const double dx = (p_W.x() - centre_W.x()) / half_axes_m.x();
-    const double dy = (p_W.y() - centre_W.y()) / half_axes_m.y();
-    const double dz = (p_W.z() - centre_W.z()) / half_axes_m.z();
+    const double dx = (p_W.x() - centre_W.x()) * (1.0 / half_axes_m.x());
+    const double dy = (p_W.y() - centre_W.y()) * (1.0 / half_axes_m.y());
+    const double dz = (p_W.z() - centre_W.z()) * (1.0 / half_axes_m.z());
     return dx * dx + (dy * dy + dz * dz) <= 1.0;
   }
   [[nodiscard]] double Volume() const;
@@ -97,9 +98,9 @@ void AppendVoxelsInside(const VoxelGrid& grid, const Ellipsoid& ellipsoid,
                         std::vector<std::uint32_t>* out);
 
 /// The paper's sum: rho * unknown + sigma * occluded + tau * known +
-/// epsilon * (free + foreign_unknown), plus below_floor * its weight. Foreign UNKNOWN voxels count as free
-/// space for this track: they are explained by another person, and scoring
-/// them as empty pushes the two particle clouds apart instead of merging them.
+/// epsilon * (free + foreign_unknown), plus below_floor * its weight. Foreign UNKNOWN voxels count
+/// as free space for this track: they are explained by another person, and scoring them as empty
+/// pushes the two particle clouds apart instead of merging them.
 [[nodiscard]] double Score(const EllipsoidCounts& counts, const LikelihoodWeights& weights);
 
 }  // namespace hg::tracking

@@ -23,13 +23,13 @@ constexpr double kGrowVoxels = 1e-9;
 
 /// True when the projections of the triangle (vertices relative to the box
 /// centre) and of the centred box of half extents h overlap on `axis`.
-bool OverlapOnAxis(const Vector3d& axis, const Vector3d& v0, const Vector3d& v1,
-                   const Vector3d& v2, const Vector3d& h) {
+bool OverlapOnAxis(const Vector3d& axis, const Vector3d& v0, const Vector3d& v1, const Vector3d& v2,
+                   const Vector3d& h) {
   const double p0 = axis.dot(v0);
   const double p1 = axis.dot(v1);
   const double p2 = axis.dot(v2);
-  const double r = h.x() * std::abs(axis.x()) + h.y() * std::abs(axis.y()) +
-                   h.z() * std::abs(axis.z());
+  const double r =
+      h.x() * std::abs(axis.x()) + h.y() * std::abs(axis.y()) + h.z() * std::abs(axis.z());
   const double lo = std::min({p0, p1, p2});
   const double hi = std::max({p0, p1, p2});
   const double tol = 1e-12 * (std::abs(lo) + std::abs(hi) + r);
@@ -144,10 +144,10 @@ void VoxelizeMesh(const VoxelGrid& g, const geometry::TriangleMesh& mesh,
     Vector3i r0, r1;
     bool empty = false;
     for (int k = 0; k < 3; ++k) {
-      r0[k] = std::max(lo[k], static_cast<int>(std::floor((tmin[k] - g.origin()[k]) / v -
-                                                          kGrowVoxels)));
-      r1[k] = std::min(hi[k], static_cast<int>(std::floor((tmax[k] - g.origin()[k]) / v +
-                                                          kGrowVoxels)));
+      r0[k] = std::max(lo[k],
+                       static_cast<int>(std::floor((tmin[k] - g.origin()[k]) / v - kGrowVoxels)));
+      r1[k] = std::min(hi[k],
+                       static_cast<int>(std::floor((tmax[k] - g.origin()[k]) / v + kGrowVoxels)));
       empty = empty || r0[k] > r1[k];
     }
     if (empty) continue;
@@ -304,8 +304,8 @@ void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& 
           const double u = std::floor(uv.x() + 0.5);
           const double w = std::floor(uv.y() + 0.5);
           if (!(u >= 0.0 && w >= 0.0 && u < depth.width && w < depth.height)) continue;
-          const std::size_t pixel = static_cast<std::size_t>(w) * depth.width +
-                                    static_cast<std::size_t>(u);
+          const std::size_t pixel =
+              static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
           if (p_C.z() <= depth.centre_depth[pixel]) seen[i] = 1;
         }
       }

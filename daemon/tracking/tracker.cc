@@ -88,8 +88,8 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
           "filter.collision_radius_m", "must be >= 0 and not larger than any half-axis", &p);
   Require(f.init_position_spread_m >= 0.0 && Finite(f.init_position_spread_m),
           "filter.init_position_spread_m", "must be >= 0", &p);
-  Require(f.init_axis_spread_m >= 0.0 && Finite(f.init_axis_spread_m),
-          "filter.init_axis_spread_m", "must be >= 0", &p);
+  Require(f.init_axis_spread_m >= 0.0 && Finite(f.init_axis_spread_m), "filter.init_axis_spread_m",
+          "must be >= 0", &p);
   Require(o.max_tracks >= 1 && o.max_tracks <= 1024, "max_tracks", "must be in [1, 1024]", &p);
   Require(o.birth_min_volume_m3 > 0.0 && Finite(o.birth_min_volume_m3), "birth_min_volume_m3",
           "must be > 0", &p);
@@ -133,7 +133,7 @@ void Tracker::Init() {
   }
   gates_.reserve(options_.max_tracks);
   tracks_.reserve(options_.max_tracks);
-  visited_.assign(map_.grid().size(), 0);
+  marks_.assign(map_.grid().size(), 0);
   queue_.reserve(map_.grid().size());
   for (int dz = -1; dz <= 1; ++dz) {
     for (int dy = -1; dy <= 1; ++dy) {
@@ -182,7 +182,8 @@ void Tracker::Step(std::int64_t stamp_ns) {
     if (!s.alive) continue;
     s.filter->Step(dt, map_, options_.likelihood, world_, s.region);
     Assess(&s, dt);
-    const double timeout = s.occluded ? options_.occluded_death_timeout_s : options_.death_timeout_s;
+    const double timeout =
+        s.occluded ? options_.occluded_death_timeout_s : options_.death_timeout_s;
     const Ellipsoid& e = s.filter->estimate().ellipsoid;
     const bool left = ((e.centre_W + e.half_axes_m).array() < covered.min.array()).any() ||
                       ((e.centre_W - e.half_axes_m).array() > covered.max.array()).any();
@@ -209,8 +210,8 @@ void Tracker::Assess(Slot* s, double dt_s) {
 }
 
 bool Tracker::Explained(const Vector3d& p_W) const {
-  for (const Ellipsoid& g : gates_) {
-    if (g.Contains(p_W)) return true;
+  for (const Gate& g : gates_) {
+    if ((p_W - g.centre_W).cwiseProduct(g.inv_half_axes).squaredNorm() <= 1.0) return true;
   }
   return false;
 }
@@ -221,87 +222,107 @@ void Tracker::Births() {
     if (!s.alive) continue;
     const FilterEstimate& e = s.filter->estimate();
     const Vector3d sd = e.centre_covariance_m2.diagonal().cwiseMax(0.0).cwiseSqrt();
-    gates_.push_back({e.ellipsoid.centre_W, e.ellipsoid.half_axes_m +
-                                                Vector3d::Constant(options_.birth_gate_margin_m) +
-                                                2.0 * sd});
+    const Vector3d half =
+        e.ellipsoid.half_axes_m + Vector3d::Constant(options_.birth_gate_margin_m) + 2.0 * sd;
+    gates_.push_back({e.ellipsoid.centre_W, half.cwiseInverse()});
   }
   const VoxelGrid& g = map_.grid();
   const double vv = g.voxel_volume_m3();
   const std::span<const std::uint32_t> unknown = map_.unknown_voxels();
-  for (const std::uint32_t seed : unknown) {
-    if (visited_[seed] != 0) continue;
-    // One component: breadth-first from the seed through UNKNOWN neighbours.
-    queue_.clear();
-    queue_.push_back(seed);
-    visited_[seed] = 1;
-    int unexplained = 0;
-    Vector3d sum = Vector3d::Zero();
-    Vector3d sum_sq = Vector3d::Zero();
-    for (std::size_t head = 0; head < queue_.size(); ++head) {
-      const Eigen::Vector3i c = g.Coords(queue_[head]);
-      const Vector3d p = g.Centre(c.x(), c.y(), c.z());
-      if (!Explained(p)) {
-        ++unexplained;
-        sum += p;
-        sum_sq += p.cwiseProduct(p);
-      }
-      for (const Eigen::Vector3i& d : neighbours_) {
-        const Eigen::Vector3i q = c + d;
-        if (!g.InGrid(q.x(), q.y(), q.z())) continue;
-        const std::uint32_t qi = g.Index(q.x(), q.y(), q.z());
-        if (visited_[qi] == 0 && map_.State(qi) == VoxelState::kUnknown) {
-          visited_[qi] = 1;
-          queue_.push_back(qi);
+  // Every UNKNOWN voxel once against the gates. When the unexplained voxels
+  // together are less than a person (the common case: everybody is tracked),
+  // no component can start a track and the search is skipped.
+  constexpr std::uint8_t kExplained = 1, kUnexplained = 2, kVisited = 4;
+  int unexplained_total = 0;
+  for (const std::uint32_t i : unknown) {
+    const Eigen::Vector3i c = g.Coords(i);
+    const bool explained = Explained(g.Centre(c.x(), c.y(), c.z()));
+    marks_[i] = explained ? kExplained : kUnexplained;
+    unexplained_total += explained ? 0 : 1;
+  }
+  if (unexplained_total * vv >= options_.birth_min_volume_m3) {
+    for (const std::uint32_t seed : unknown) {
+      if (marks_[seed] != kUnexplained) continue;  // Explained, or visited already.
+      // One component: breadth-first from the seed through UNKNOWN neighbours.
+      queue_.clear();
+      queue_.push_back(seed);
+      marks_[seed] |= kVisited;
+      int unexplained = 0;
+      Vector3d sum = Vector3d::Zero();
+      Vector3d sum_sq = Vector3d::Zero();
+      for (std::size_t head = 0; head < queue_.size(); ++head) {
+        const std::uint32_t i = queue_[head];
+        const Eigen::Vector3i c = g.Coords(i);
+        if ((marks_[i] & kUnexplained) != 0) {
+          const Vector3d p = g.Centre(c.x(), c.y(), c.z());
+          ++unexplained;
+          sum += p;
+          sum_sq += p.cwiseProduct(p);
+        }
+        for (const Eigen::Vector3i& d : neighbours_) {
+          const Eigen::Vector3i q = c + d;
+          if (!g.InGrid(q.x(), q.y(), q.z())) continue;
+          const std::uint32_t qi = g.Index(q.x(), q.y(), q.z());
+          // Marked and not visited: an UNKNOWN voxel of this cycle.
+          if (marks_[qi] != 0 && (marks_[qi] & kVisited) == 0) {
+            marks_[qi] |= kVisited;
+            queue_.push_back(qi);
+          }
         }
       }
+      StartOrReacquire(unexplained, sum, sum_sq);
     }
-    if (unexplained * vv < options_.birth_min_volume_m3) continue;
-    // Uniform solid ellipsoid: variance along an axis = half-axis^2 / 5.
-    const Vector3d mean = sum / unexplained;
-    const Vector3d var = (sum_sq / unexplained - mean.cwiseProduct(mean)).cwiseMax(0.0);
-    const Ellipsoid initial{mean, (5.0 * var).cwiseSqrt()};
-    Slot* lost = nullptr;
-    double lost_distance = std::numeric_limits<double>::infinity();
-    for (Slot& s : slots_) {
-      if (!s.alive || s.time_since_support_s <= 0.0) continue;
-      const double d = (s.filter->estimate().ellipsoid.centre_W - mean).norm();
-      const double reach =
-          options_.reacquire_radius_m + options_.reacquire_speed_mps * s.time_since_support_s;
-      if (d <= reach && d < lost_distance) {
-        lost = &s;
-        lost_distance = d;
-      }
-    }
-    if (lost != nullptr) {
-      lost->filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed ^ stats_.cycles, lost->id));
-      Assess(lost, 0.0);
-      lost->time_since_support_s = 0.0;
-      ++stats_.reacquisitions;
-      continue;
-    }
-    Slot* free_slot = nullptr;
-    for (Slot& s : slots_) {
-      if (!s.alive) {
-        free_slot = &s;
-        break;
-      }
-    }
-    if (free_slot == nullptr) {
-      ++stats_.births_dropped;
-      continue;
-    }
-    Slot& s = *free_slot;
-    s.alive = true;
-    s.id = next_id_++;
-    s.age_s = 0.0;
-    s.time_since_support_s = 0.0;
-    s.region.clear();
-    s.filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed, s.id));
-    Assess(&s, 0.0);
-    s.time_since_support_s = 0.0;
-    ++stats_.births;
   }
-  for (const std::uint32_t i : unknown) visited_[i] = 0;
+  for (const std::uint32_t i : unknown) marks_[i] = 0;
+}
+
+void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vector3d& sum_sq) {
+  if (unexplained * map_.grid().voxel_volume_m3() < options_.birth_min_volume_m3) return;
+  // Uniform solid ellipsoid: variance along an axis = half-axis^2 / 5.
+  const Vector3d mean = sum / unexplained;
+  const Vector3d var = (sum_sq / unexplained - mean.cwiseProduct(mean)).cwiseMax(0.0);
+  const Ellipsoid initial{mean, (5.0 * var).cwiseSqrt()};
+  Slot* lost = nullptr;
+  double lost_distance = std::numeric_limits<double>::infinity();
+  for (Slot& s : slots_) {
+    if (!s.alive || s.time_since_support_s <= 0.0) continue;
+    const double d = (s.filter->estimate().ellipsoid.centre_W - mean).norm();
+    const double reach =
+        options_.reacquire_radius_m + options_.reacquire_speed_mps * s.time_since_support_s;
+    if (d <= reach && d < lost_distance) {
+      lost = &s;
+      lost_distance = d;
+    }
+  }
+  if (lost != nullptr) {
+    lost->filter->Reset(initial, Vector3d::Zero(),
+                        MixSeed(options_.seed ^ stats_.cycles, lost->id));
+    Assess(lost, 0.0);
+    lost->time_since_support_s = 0.0;
+    ++stats_.reacquisitions;
+    return;
+  }
+  Slot* free_slot = nullptr;
+  for (Slot& s : slots_) {
+    if (!s.alive) {
+      free_slot = &s;
+      break;
+    }
+  }
+  if (free_slot == nullptr) {
+    ++stats_.births_dropped;
+    return;
+  }
+  Slot& s = *free_slot;
+  s.alive = true;
+  s.id = next_id_++;
+  s.age_s = 0.0;
+  s.time_since_support_s = 0.0;
+  s.region.clear();
+  s.filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed, s.id));
+  Assess(&s, 0.0);
+  s.time_since_support_s = 0.0;
+  ++stats_.births;
 }
 
 void Tracker::Publish() {

@@ -165,6 +165,9 @@ class Tracker {
   void Init();
   void Assess(Slot* slot, double dt_s);
   void Births();
+  /// A component with `unexplained` voxels outside every gate (sum and sum of
+  /// squares of their centres): re-acquired by a lost track, or a new track.
+  void StartOrReacquire(int unexplained, const Eigen::Vector3d& sum, const Eigen::Vector3d& sum_sq);
   void Publish();
   /// Inside a live track's gate.
   [[nodiscard]] bool Explained(const Eigen::Vector3d& p_W) const;
@@ -173,10 +176,14 @@ class Tracker {
   VoxelMap map_;
   CollisionWorld world_;
   std::vector<Slot> slots_;
-  std::vector<Ellipsoid> gates_;   // Per live slot, rebuilt each cycle.
+  struct Gate {
+    Eigen::Vector3d centre_W;
+    Eigen::Vector3d inv_half_axes;  // 1 / half-axes.
+  };
+  std::vector<Gate> gates_;  // Per live slot, rebuilt each cycle.
   std::vector<Track> tracks_;
-  std::vector<std::uint8_t> visited_;    // Per voxel, component search.
-  std::vector<std::uint32_t> queue_;     // Component search order.
+  std::vector<std::uint8_t> marks_;   // Per voxel: explained / unexplained / visited.
+  std::vector<std::uint32_t> queue_;  // Component search order.
   std::vector<Eigen::Vector3i> neighbours_;
   std::uint32_t next_id_ = 1;
   std::int64_t last_stamp_ns_ = 0;

@@ -23,9 +23,9 @@ constexpr double kCellSlackVoxels = 1e-9;
 
 VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states) : grid_(grid) {
   if (static_states.size() != grid_.size()) {
-    throw common::ConfigError("tracking: static voxel states: " +
-                              std::to_string(static_states.size()) + " given, the grid has " +
-                              std::to_string(grid_.size()));
+    throw common::ConfigError(
+        "tracking: static voxel states: " + std::to_string(static_states.size()) +
+        " given, the grid has " + std::to_string(grid_.size()));
   }
   flags_.resize(grid_.size());
   for (std::size_t i = 0; i < flags_.size(); ++i) {
@@ -130,11 +130,11 @@ void VoxelMap::RebuildRow(int row) {
   for (int x = 0; x < nx; ++x) {
     const auto s = static_cast<VoxelState>(f[x] & kStaticMask);
     if (s == VoxelState::kKnown) {
-      ++acc.known;
+      acc.packed += RowCounts::kKnownOne;
     } else if ((f[x] & kUnknownBit) != 0) {
-      ++acc.unknown;
+      acc.packed += RowCounts::kUnknownOne;
     } else if (s == VoxelState::kOccluded) {
-      ++acc.occluded;
+      acc.packed += RowCounts::kOccludedOne;
     }
     p[x + 1] = acc;
   }

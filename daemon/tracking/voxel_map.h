@@ -14,14 +14,35 @@
 namespace hg::tracking {
 
 /// Prefix counts along one row: entry i counts the voxels [0, i) of the row in
-/// each state (free voxels are the rest). 16 bits suffice because rows hold
-/// at most VoxelGrid::kMaxRowLength voxels; the entry is 8 bytes so one lookup
-/// touches one cache line.
+/// each state (free voxels are the rest), packed into one 64-bit word of three
+/// 21-bit fields. Entries are non-decreasing in every field, so the
+/// difference of two entries is the packed count of the voxels between them
+/// (no borrow crosses a field), and up to kMaxSummedRows such differences
+/// can be added before a field could overflow. One lookup is one 8-byte load.
 struct RowCounts {
-  std::uint16_t unknown = 0;
-  std::uint16_t occluded = 0;
-  std::uint16_t known = 0;
-  std::uint16_t unused = 0;
+  static constexpr int kBits = 21;
+  static constexpr std::uint64_t kMask = (std::uint64_t{1} << kBits) - 1;
+  static constexpr std::uint64_t kUnknownOne = 1;
+  static constexpr std::uint64_t kOccludedOne = std::uint64_t{1} << kBits;
+  static constexpr std::uint64_t kKnownOne = std::uint64_t{1} << (2 * kBits);
+  /// Rows of at most VoxelGrid::kMaxRowLength voxels whose differences can be
+  /// summed in one word: 32 * 65535 < 2^21.
+  static constexpr int kMaxSummedRows = 32;
+
+  std::uint64_t packed = 0;
+
+  [[nodiscard]] static int Unknown(std::uint64_t packed) {
+    return static_cast<int>(packed & kMask);
+  }
+  [[nodiscard]] static int Occluded(std::uint64_t packed) {
+    return static_cast<int>((packed >> kBits) & kMask);
+  }
+  [[nodiscard]] static int Known(std::uint64_t packed) {
+    return static_cast<int>((packed >> (2 * kBits)) & kMask);
+  }
+  [[nodiscard]] int unknown() const { return Unknown(packed); }
+  [[nodiscard]] int occluded() const { return Occluded(packed); }
+  [[nodiscard]] int known() const { return Known(packed); }
 };
 
 /// The voxel states of the cell.
@@ -98,12 +119,12 @@ class VoxelMap {
   void RebuildRow(int row);
 
   VoxelGrid grid_;
-  std::vector<std::uint8_t> flags_;       // Static state | kUnknownBit | kStagedBit.
-  std::vector<RowCounts> prefix_;         // (nx + 1) per row.
-  std::vector<std::uint32_t> current_;    // UNKNOWN voxels now.
-  std::vector<std::uint32_t> staged_;     // UNKNOWN voxels of the cycle being built.
-  std::vector<std::uint8_t> row_dirty_;   // Per row.
-  std::vector<int> dirty_rows_;           // Rows to rebuild.
+  std::vector<std::uint8_t> flags_;      // Static state | kUnknownBit | kStagedBit.
+  std::vector<RowCounts> prefix_;        // (nx + 1) per row.
+  std::vector<std::uint32_t> current_;   // UNKNOWN voxels now.
+  std::vector<std::uint32_t> staged_;    // UNKNOWN voxels of the cycle being built.
+  std::vector<std::uint8_t> row_dirty_;  // Per row.
+  std::vector<int> dirty_rows_;          // Rows to rebuild.
   // Snapshot cell -> voxel index ranges per axis (first, last), reused.
   std::vector<Eigen::Vector2i> cell_range_[3];
   int rows_rebuilt_ = 0;

@@ -65,9 +65,9 @@ void BM_TrackerStep(benchmark::State& state) {
   };
   for (int k = 0; k < kFramesPerLap; ++k) cycle();
   for (auto _ : state) cycle();
-  state.counters["per_person"] = benchmark::Counter(
-      static_cast<double>(state.iterations()) * people,
-      benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+  state.counters["per_person"] =
+      benchmark::Counter(static_cast<double>(state.iterations()) * people,
+                         benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
   state.counters["tracks"] = static_cast<double>(tracker.tracks().size());
   state.counters["births"] = static_cast<double>(tracker.stats().births);
 }
@@ -76,7 +76,8 @@ BENCHMARK(BM_TrackerStep)->Arg(1)->Arg(3)->Unit(benchmark::kMillisecond);
 // One likelihood sum of a person-sized ellipsoid on the same grid.
 void BM_EllipsoidCount(benchmark::State& state) {
   const tracking::VoxelGrid g({Vector3d::Zero(), Vector3d(5, 4, 2.5)}, 0.04);
-  tracking::VoxelMap map(g, std::vector<tracking::VoxelState>(g.size(), tracking::VoxelState::kFree));
+  tracking::VoxelMap map(g,
+                         std::vector<tracking::VoxelState>(g.size(), tracking::VoxelState::kFree));
   std::vector<std::uint32_t> blob;
   tracking::AppendVoxelsInside(g, {{2.5, 2.0, 0.9}, {0.25, 0.2, 0.85}}, &blob);
   map.SetUnknown(blob);

@@ -4,8 +4,8 @@
 #include <random>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 namespace hg::tracking {
 namespace {
@@ -97,8 +97,8 @@ TEST(CapsuleBoxTest, HandBuiltCases) {
   const Vector3d q0(1.5, 0.0, 0.0), q1(0.0, 1.5, 0.0);  // Line x + y = 1.5.
   EXPECT_NEAR(std::sqrt(SegmentBoxDistanceSquared(q0, q1, box)), 0.5 / std::sqrt(2.0), 1e-15);
   // Near a corner from outside along the diagonal.
-  EXPECT_NEAR(std::sqrt(SegmentBoxDistanceSquared({1, 1, 1}, {2, 2, 2}, box)),
-              std::sqrt(3.0) * 0.5, 1e-15);
+  EXPECT_NEAR(std::sqrt(SegmentBoxDistanceSquared({1, 1, 1}, {2, 2, 2}, box)), std::sqrt(3.0) * 0.5,
+              1e-15);
   // Through the box.
   EXPECT_EQ(SegmentBoxDistanceSquared({-2, 0.1, 0.2}, {2, -0.1, 0.3}, box), 0.0);
   // Degenerate segment: the point's distance.
@@ -134,7 +134,7 @@ TEST(CapsuleBoxTest, MatchesSampling) {
 
 TEST(CapsuleCylinderTest, PointDistance) {
   const sim::CylinderSolid cyl{{0, 0, 0}, {0, 0, 1}, 0.5};
-  EXPECT_NEAR(PointCylinderDistance({0.75, 0, 0.5}, cyl), 0.25, 1e-15);   // Side.
+  EXPECT_NEAR(PointCylinderDistance({0.75, 0, 0.5}, cyl), 0.25, 1e-15);    // Side.
   EXPECT_NEAR(PointCylinderDistance({0.1, 0.2, 1.25}, cyl), 0.25, 1e-15);  // Top cap.
   EXPECT_NEAR(PointCylinderDistance({0, 0.8, -0.4}, cyl), 0.5, 1e-15);     // Below the rim.
   EXPECT_EQ(PointCylinderDistance({0.1, 0.1, 0.1}, cyl), 0.0);             // Inside.
@@ -151,11 +151,11 @@ TEST(CapsuleCylinderTest, HandBuiltCases) {
   // Past the rim diagonally: 0.283 from the rim, so a 0.25 capsule misses,
   // although it reaches the capsule around the cylinder's axis (0.728 < 0.75).
   const Vector3d rim(0.7, 0.0, 1.2);
-  EXPECT_FALSE(SegmentNearCylinder(rim + Vector3d(0, -0.3, 0), rim + Vector3d(0, 0.3, 0), cyl,
-                                   0.25));
+  EXPECT_FALSE(
+      SegmentNearCylinder(rim + Vector3d(0, -0.3, 0), rim + Vector3d(0, 0.3, 0), cyl, 0.25));
   EXPECT_LE(SegmentSegmentDistanceSquared(rim, rim, cyl.a_W, cyl.b_W), 0.75 * 0.75);
-  EXPECT_TRUE(SegmentNearCylinder(rim + Vector3d(0, -0.3, 0), rim + Vector3d(0, 0.3, 0), cyl,
-                                  0.29));
+  EXPECT_TRUE(
+      SegmentNearCylinder(rim + Vector3d(0, -0.3, 0), rim + Vector3d(0, 0.3, 0), cyl, 0.29));
   // Degenerate move inside the cylinder; through the cylinder.
   EXPECT_TRUE(SegmentNearCylinder({0, 0, 0.5}, {0, 0, 0.5}, cyl, 0.0));
   EXPECT_TRUE(SegmentNearCylinder({-3, 0.2, 0.5}, {3, 0.2, 0.5}, cyl, 0.01));

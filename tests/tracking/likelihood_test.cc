@@ -118,7 +118,7 @@ TEST(LikelihoodTest, HandBuiltSum) {
   s[g.Index(0, 0, 0)] = VoxelState::kOccluded;  // Corner: outside the ball.
   VoxelMap map(g, s);
   map.SetUnknown(std::vector<std::uint32_t>{g.Index(1, 1, 1), g.Index(0, 1, 1),  // KNOWN wins.
-                                            g.Index(2, 2, 2)});                   // Outside.
+                                            g.Index(2, 2, 2)});                  // Outside.
   const Ellipsoid ball{Vector3d::Constant(0.15), Vector3d::Constant(0.11)};
   const EllipsoidCounts n = CountVoxels(map, ball);
   EXPECT_EQ(n.unknown, 1);

@@ -4,8 +4,8 @@
 #include <set>
 #include <vector>
 
-#include <Eigen/Geometry>
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include "scene/demo_cell.h"
 
@@ -84,8 +84,8 @@ void ExpectCovers(const VoxelGrid& g, const sim::SolidGeometry& solid,
     const Vector3d p(ux(*rng), uy(*rng), uz(*rng));
     if (!sim::Contains(solid, p) || !g.covered().Contains(p)) continue;
     ++inside;
-    const Eigen::Vector3i v = g.VoxelOf(p).cwiseMin(Eigen::Vector3i(g.nx(), g.ny(), g.nz()) -
-                                                    Eigen::Vector3i::Ones());
+    const Eigen::Vector3i v =
+        g.VoxelOf(p).cwiseMin(Eigen::Vector3i(g.nx(), g.ny(), g.nz()) - Eigen::Vector3i::Ones());
     ASSERT_NE(mask[g.Index(v.x(), v.y(), v.z())], 0) << p.transpose();
   }
   EXPECT_GT(inside, 1000);  // The thin capsule gets about 2300.
@@ -174,11 +174,11 @@ struct TableCell {
 TEST(StaticVoxelsTest, KnownOccludedAndFree) {
   TableCell cell;
   const StaticVoxels v = BuildStaticVoxels(cell.grid, cell.scene);
-  EXPECT_EQ(cell.At(v, {2.0, 2.0, 0.92}), VoxelState::kKnown);     // Table top.
-  EXPECT_EQ(cell.At(v, {1.53, 1.53, 0.4}), VoxelState::kKnown);    // A leg.
-  EXPECT_EQ(cell.At(v, {2.0, 2.0, 0.4}), VoxelState::kOccluded);   // Under the top.
-  EXPECT_EQ(cell.At(v, {2.0, 2.0, 1.5}), VoxelState::kFree);       // Above it.
-  EXPECT_EQ(cell.At(v, {0.5, 0.5, 0.4}), VoxelState::kFree);       // Beside it.
+  EXPECT_EQ(cell.At(v, {2.0, 2.0, 0.92}), VoxelState::kKnown);    // Table top.
+  EXPECT_EQ(cell.At(v, {1.53, 1.53, 0.4}), VoxelState::kKnown);   // A leg.
+  EXPECT_EQ(cell.At(v, {2.0, 2.0, 0.4}), VoxelState::kOccluded);  // Under the top.
+  EXPECT_EQ(cell.At(v, {2.0, 2.0, 1.5}), VoxelState::kFree);      // Above it.
+  EXPECT_EQ(cell.At(v, {0.5, 0.5, 0.4}), VoxelState::kFree);      // Beside it.
   // A low camera looking under the table sees that space.
   cell.scene.cameras.push_back(scene::LookAtCamera({2, -0.5, 0.45}, {2, 2, 0.45}, 640, 480, 300));
   const StaticVoxels w = BuildStaticVoxels(cell.grid, cell.scene);

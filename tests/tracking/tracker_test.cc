@@ -241,8 +241,8 @@ TEST(TrackerTest, TracksFromSnapshots) {
       for (int y = 0; y < 128; ++y) {
         int run_start = -1;
         for (int x = 0; x <= 128; ++x) {
-          const bool in =
-              x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell, (z + 0.5) * cell));
+          const bool in = x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell,
+                                                            (z + 0.5) * cell));
           if (in && run_start < 0) run_start = x;
           if (!in && run_start >= 0) {
             snap.occupied.push_back({static_cast<std::uint16_t>(run_start),

@@ -62,17 +62,17 @@ void ExpectPrefixMatchesStates(const VoxelMap& map) {
       const RowCounts* p = map.RowPrefix(y, z);
       int u = 0, o = 0, k = 0;
       for (int x = 0; x < g.nx(); ++x) {
-        ASSERT_EQ(p[x].unknown, u);
-        ASSERT_EQ(p[x].occluded, o);
-        ASSERT_EQ(p[x].known, k);
+        ASSERT_EQ(p[x].unknown(), u);
+        ASSERT_EQ(p[x].occluded(), o);
+        ASSERT_EQ(p[x].known(), k);
         const VoxelState s = map.State(x, y, z);
         u += s == VoxelState::kUnknown;
         o += s == VoxelState::kOccluded;
         k += s == VoxelState::kKnown;
       }
-      ASSERT_EQ(p[g.nx()].unknown, u);
-      ASSERT_EQ(p[g.nx()].occluded, o);
-      ASSERT_EQ(p[g.nx()].known, k);
+      ASSERT_EQ(p[g.nx()].unknown(), u);
+      ASSERT_EQ(p[g.nx()].occluded(), o);
+      ASSERT_EQ(p[g.nx()].known(), k);
     }
   }
 }
@@ -107,8 +107,7 @@ TEST(VoxelMapTest, IncrementalUpdatesEqualFromScratch) {
       return e;
     }();
     for (std::uint32_t i = 0; i < g.size(); ++i) {
-      const VoxelState want =
-          expected_unknown.count(i) != 0 ? VoxelState::kUnknown : statics[i];
+      const VoxelState want = expected_unknown.count(i) != 0 ? VoxelState::kUnknown : statics[i];
       ASSERT_EQ(incremental.State(i), want) << "cycle " << cycle << " voxel " << i;
       ASSERT_EQ(incremental.StaticState(i), statics[i]);
     }
@@ -120,9 +119,9 @@ TEST(VoxelMapTest, IncrementalUpdatesEqualFromScratch) {
         const RowCounts* a = incremental.RowPrefix(y, z);
         const RowCounts* b = scratch.RowPrefix(y, z);
         for (int x = 0; x <= g.nx(); ++x) {
-          ASSERT_EQ(a[x].unknown, b[x].unknown);
-          ASSERT_EQ(a[x].occluded, b[x].occluded);
-          ASSERT_EQ(a[x].known, b[x].known);
+          ASSERT_EQ(a[x].unknown(), b[x].unknown());
+          ASSERT_EQ(a[x].occluded(), b[x].occluded());
+          ASSERT_EQ(a[x].known(), b[x].known());
         }
       }
     }
