@@ -130,7 +130,8 @@ int RunPipeline(const Config& config, double duration_s) {
   pipeline::Pipeline::Consumer consumer;
 #ifdef HG_WITH_DDS
   // Publish never blocks or throws; it runs on the fusion thread after each cycle.
-  publish::DdsPublisher publisher(config.dds, config.timing.rate_hz);
+  publish::DdsPublisher publisher(
+      {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled}, config.timing.rate_hz);
   if (config.dds.enabled) {
     consumer = [&publisher](const std::shared_ptr<const pipeline::OccupancySnapshot>& s) {
       publisher.Publish(*s);

@@ -95,7 +95,7 @@ dds::Qos StatusReaderQos(nanoseconds deadline) {
   return ReaderQos(deadline, DDS_RELIABILITY_RELIABLE);
 }
 
-DdsPublisher::DdsPublisher(const app::DdsConfig& config, double rate_hz)
+DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
     : enabled_(config.enabled),
       occupancy_topic_(OccupancyTopicName(config.topic_prefix)),
       status_topic_(StatusTopicName(config.topic_prefix)),

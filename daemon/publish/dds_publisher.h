@@ -10,11 +10,17 @@
 #include <memory>
 #include <string>
 
-#include "app/config.h"
 #include "pipeline/snapshot.h"
 #include "publish/dds.h"
 
 namespace hg::publish {
+
+/// Where the publisher writes (the daemon fills it from its `dds` section).
+struct PublisherConfig {
+  int domain_id = 0;
+  std::string topic_prefix = "hullguard";
+  bool enabled = true;  ///< False: Publish() does nothing.
+};
 
 /// Topic names for a prefix ("hullguard" -> "hullguard/occupancy").
 [[nodiscard]] std::string OccupancyTopicName(const std::string& prefix);
@@ -56,7 +62,7 @@ class DdsPublisher {
   /// created and Publish does nothing.
   /// @throws dds::Error when Cyclone DDS refuses (bad domain, bad topic name,
   /// bad CYCLONEDDS_URI); std::invalid_argument when rate_hz <= 0.
-  DdsPublisher(const app::DdsConfig& config, double rate_hz);
+  DdsPublisher(const PublisherConfig& config, double rate_hz);
   ~DdsPublisher();
   DdsPublisher(const DdsPublisher&) = delete;
   DdsPublisher& operator=(const DdsPublisher&) = delete;

@@ -28,8 +28,8 @@ using std::chrono::seconds;
 
 int TestDomain() { return static_cast<int>(getpid() % 200) + 1; }
 
-app::DdsConfig TestConfig(const std::string& prefix) {
-  app::DdsConfig config;
+PublisherConfig TestConfig(const std::string& prefix) {
+  PublisherConfig config;
   config.domain_id = TestDomain();
   config.topic_prefix = prefix;
   return config;
@@ -230,7 +230,7 @@ TEST(DdsPublisherTest, TopicNamesAndQosFollowTheRate) {
 }
 
 TEST(DdsPublisherTest, DisabledPublisherCreatesNothing) {
-  app::DdsConfig config = TestConfig("disabled");
+  PublisherConfig config = TestConfig("disabled");
   config.enabled = false;
   DdsPublisher publisher(config, 30.0);
   EXPECT_FALSE(publisher.enabled());
@@ -239,7 +239,7 @@ TEST(DdsPublisherTest, DisabledPublisherCreatesNothing) {
 }
 
 TEST(DdsPublisherTest, BadDomainThrowsWithCycloneMessage) {
-  app::DdsConfig config = TestConfig("bad");
+  PublisherConfig config = TestConfig("bad");
   config.domain_id = 100000;
   try {
     DdsPublisher publisher(config, 30.0);
@@ -302,7 +302,7 @@ TEST(DdsPublisherTest, ReaderSeesDeadlineMissWhenPublisherStops) {
 
 TEST(DdsPublisherTest, ReaderAskingForShorterDeadlineThanOfferedDoesNotMatch) {
   DdsPublisher publisher(TestConfig("rxo"), 10.0);  // Offers 200 ms.
-  app::DdsConfig config = TestConfig("rxo");
+  PublisherConfig config = TestConfig("rxo");
   dds::Participant participant(config.domain_id);
   dds::Topic topic(participant, &hullguard_Occupancy_desc, OccupancyTopicName("rxo"));
   dds::Reader reader(participant, topic, OccupancyReaderQos(milliseconds(50)).get());
@@ -322,7 +322,7 @@ TEST(DdsPublisherTest, ReaderAskingForShorterDeadlineThanOfferedDoesNotMatch) {
 
 // Publisher mode for the `hullguard echo` test: 20 Hz for `seconds_to_run`.
 int PublishForEcho(int domain, double seconds_to_run) {
-  app::DdsConfig config;
+  PublisherConfig config;
   config.domain_id = domain;
   DdsPublisher publisher(config, 20.0);
   const auto end = std::chrono::steady_clock::now() +
