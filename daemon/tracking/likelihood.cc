@@ -101,124 +101,6 @@ inline Span RowSpan(const VoxelGrid& g, const Prepared& e, double q) {
   return span;
 }
 
-/// Rows of one ellipsoid, gathered layer by layer and solved together: the
-/// floating-point loop (square roots and conversions included) runs over many
-/// rows at once and vectorises; the counting loop then does integer work only.
-constexpr int kChunkRows = 256;
-struct RowChunk {
-  int n = 0;
-  int y[kChunkRows];
-  int z[kChunkRows];
-  std::int64_t prefix[kChunkRows];  // Offset of the row's prefix counts (z >= 0).
-  double dz2[kChunkRows];
-  double q[kChunkRows];
-  int lo[kChunkRows];
-  int hi[kChunkRows];
-  int ambiguous[kChunkRows];  // An end within tol of a voxel centre: use RowSpan.
-};
-
-/// Per row: q = dy^2 + dz^2 and the voxels [lo, hi] whose centres lie inside
-/// (unclamped; empty when q > 1 unless flagged ambiguous). Each end is the
-/// floor of the closed form shifted by -tol and by +tol: equal results mean no
-/// voxel centre within tol of the boundary, so the end is exact; different
-/// results flag the row for RowSpan. (FastFloor may round an argument within
-/// 2^-22 below an integer up, which can only make the two differ.)
-void SolveRows(const VoxelGrid& g, const Prepared& e, RowChunk* r) {
-  // Locals, so that the stores into *r cannot alias them.
-  const double origin_y = g.origin().y();
-  const double voxel = g.voxel_m();
-  const double cy = e.c.y();
-  const double inv_hy = e.inv_h.y();
-  const double cx_idx = e.c_idx.x();
-  const double hx_idx = e.h_idx.x();
-  const double tol = e.tol;
-  const int n = r->n;
-  for (int i = 0; i < n; ++i) {
-    // The same arithmetic as VoxelGrid::CentreY and Ellipsoid::Contains.
-    const double dy = (origin_y + (r->y[i] + 0.5) * voxel - cy) * inv_hy;
-    const double q = dy * dy + r->dz2[i];
-    const double w = std::sqrt(std::max(1.0 - q, 0.0)) * hx_idx;
-    const double t_lo = cx_idx - w;
-    const double t_hi = cx_idx + w;
-    const int lo_a = FastFloor(t_lo - tol);
-    const int lo_b = FastFloor(t_lo + tol);
-    const int hi_a = FastFloor(t_hi - tol);
-    const int hi_b = FastFloor(t_hi + tol);
-    r->q[i] = q;
-    r->lo[i] = lo_a + 1;
-    r->hi[i] = hi_a;
-    r->ambiguous[i] = (lo_a != lo_b ? 1 : 0) | (hi_a != hi_b ? 1 : 0);
-  }
-}
-
-/// Running sums of CountVoxels. Row differences are added packed and unpacked
-/// every RowCounts::kMaxSummedRows rows, before a field could overflow.
-struct Sums {
-  std::uint64_t packed = 0;
-  int packed_rows = 0;
-  int length = 0;
-  int unknown = 0;
-  int occluded = 0;
-  int known = 0;
-  int free = 0;
-  int foreign = 0;
-  int below_floor = 0;
-
-  void Flush() {
-    const int u = RowCounts::Unknown(packed);
-    const int o = RowCounts::Occluded(packed);
-    const int k = RowCounts::Known(packed);
-    unknown += u;
-    occluded += o;
-    known += k;
-    free += length - u - o - k;
-    packed = 0;
-    packed_rows = 0;
-    length = 0;
-  }
-};
-
-/// Counts the solved rows of a chunk into `sums`.
-void CountRows(const VoxelMap& map, const Prepared& e, std::span<const HalfSpace> own_region,
-               const RowChunk& r, Sums* out) {
-  const VoxelGrid& g = map.grid();
-  const int nx = g.nx();
-  const RowCounts* prefix = map.RowPrefix(0, 0);
-  Sums sums = *out;
-  for (int i = 0; i < r.n; ++i) {
-    Span span{r.lo[i], r.hi[i]};
-    if (r.ambiguous[i] != 0) {
-      // q > 1: dx^2 + q >= q > 1 also after rounding, no centre is inside.
-      if (r.q[i] > 1.0) continue;
-      span = RowSpan(g, e, r.q[i]);
-    }
-    if (r.z[i] < 0) {  // Below the grid: every lattice position counts.
-      if (span.hi >= span.lo) sums.below_floor += span.hi - span.lo + 1;
-      continue;
-    }
-    span.lo = std::max(span.lo, 0);
-    span.hi = std::min(span.hi, nx - 1);
-    if (span.lo > span.hi) continue;
-    const RowCounts* p = prefix + r.prefix[i];
-    const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
-    sums.packed += row;
-    sums.length += span.hi - span.lo + 1;
-    if (++sums.packed_rows == RowCounts::kMaxSummedRows) sums.Flush();
-    if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
-      Span own = span;
-      const double py = g.CentreY(r.y[i]);
-      const double pz = g.CentreZ(r.z[i]);
-      for (const HalfSpace& hs : own_region) {
-        ClipToHalfSpace(g, hs, py, pz, &own);
-        if (own.lo > own.hi) break;
-      }
-      const int own_unknown = own.lo > own.hi ? 0 : p[own.hi + 1].unknown() - p[own.lo].unknown();
-      sums.foreign += RowCounts::Unknown(row) - own_unknown;
-    }
-  }
-  *out = sums;
-}
-
 }  // namespace
 
 double Ellipsoid::Volume() const { return 4.0 / 3.0 * std::numbers::pi * half_axes_m.prod(); }
@@ -255,44 +137,98 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   // Layers within the bounding box, and per layer the rows within its
   // ellipse's bounding interval: floor/ceil of the closed-form bounds include
   // every row the predicate can accept, and the predicate skips the rest.
+  const int nx = g.nx();
+  const std::size_t stride = static_cast<std::size_t>(nx) + 1;
+  const double cx_idx = e.c_idx.x();
+  const double hx_idx = e.h_idx.x();
+  const double tol = e.tol;
+  const double cy = c.y();
+  const double inv_hy = e.inv_h.y();
   const int z_lo = FloorInt(e.c_idx.z() - e.h_idx.z());
   const int z_hi = std::min(CeilInt(e.c_idx.z() + e.h_idx.z()), g.nz() - 1);
-  RowChunk rows;
-  Sums sums;
-  auto flush_rows = [&] {
-    SolveRows(g, e, &rows);
-    CountRows(map, e, own_region, rows, &sums);
-    rows.n = 0;
+  // Row differences are summed packed and unpacked every kMaxSummedRows rows,
+  // before a field could overflow.
+  std::uint64_t packed = 0;
+  int packed_rows = 0;
+  int length = 0;
+  int unknown = 0, occluded = 0, known = 0, free = 0, foreign = 0;
+  auto flush = [&] {
+    const int u = RowCounts::Unknown(packed);
+    const int o = RowCounts::Occluded(packed);
+    const int k = RowCounts::Known(packed);
+    unknown += u;
+    occluded += o;
+    known += k;
+    free += length - u - o - k;
+    packed = 0;
+    packed_rows = 0;
+    length = 0;
   };
   for (int z = z_lo; z <= z_hi; ++z) {
-    const double dz = (g.CentreZ(z) - c.z()) * e.inv_h.z();
+    const double pz = g.CentreZ(z);
+    const double dz = (pz - c.z()) * e.inv_h.z();
     const double dz2 = dz * dz;
     if (dz2 > 1.0) continue;
     const double wy = std::sqrt(1.0 - dz2) * e.h_idx.y();
     int y_lo = FloorInt(e.c_idx.y() - wy);
     int y_hi = CeilInt(e.c_idx.y() + wy);
-    if (z >= 0) {  // Below the grid, rows beyond its sides count as well.
-      y_lo = std::max(y_lo, 0);
-      y_hi = std::min(y_hi, g.ny() - 1);
+    if (z < 0) {  // Below the grid: every lattice position counts, any x and y.
+      for (int y = y_lo; y <= y_hi; ++y) {
+        const double dy = (g.CentreY(y) - cy) * inv_hy;
+        const double q = dy * dy + dz2;
+        if (q > 1.0) continue;
+        const Span span = RowSpan(g, e, q);
+        if (span.hi >= span.lo) out.below_floor += span.hi - span.lo + 1;
+      }
+      continue;
     }
-    const std::int64_t stride = g.nx() + 1;
-    for (int y = y_lo; y <= y_hi; ++y) {
-      if (rows.n == kChunkRows) flush_rows();
-      rows.y[rows.n] = y;
-      rows.z[rows.n] = z;
-      rows.prefix[rows.n] = z >= 0 ? static_cast<std::int64_t>(g.Row(y, z)) * stride : 0;
-      rows.dz2[rows.n] = dz2;
-      ++rows.n;
+    y_lo = std::max(y_lo, 0);
+    y_hi = std::min(y_hi, g.ny() - 1);
+    if (y_lo > y_hi) continue;
+    const RowCounts* p = map.RowPrefix(y_lo, z);
+    for (int y = y_lo; y <= y_hi; ++y, p += stride) {
+      // The same arithmetic as VoxelGrid::CentreY and Ellipsoid::Contains.
+      const double dy = (g.CentreY(y) - cy) * inv_hy;
+      const double q = dy * dy + dz2;
+      // q > 1: dx^2 + q >= q > 1 also after rounding, no centre is inside.
+      if (q > 1.0) continue;
+      // Each end is the floor of the closed form shifted by -tol and by +tol:
+      // equal results mean no voxel centre within tol of the boundary, so the
+      // end is exact; otherwise RowSpan re-tests with the predicate. (FastFloor
+      // may round an argument within 2^-22 below an integer up, which can only
+      // make the two differ.)
+      const double w = std::sqrt(1.0 - q) * hx_idx;
+      const double t_lo = cx_idx - w;
+      const double t_hi = cx_idx + w;
+      Span span{FastFloor(t_lo - tol) + 1, FastFloor(t_hi - tol)};
+      if (((FastFloor(t_lo + tol) + 1) ^ span.lo) | (FastFloor(t_hi + tol) ^ span.hi)) {
+        span = RowSpan(g, e, q);
+      }
+      span.lo = std::max(span.lo, 0);
+      span.hi = std::min(span.hi, nx - 1);
+      if (span.lo > span.hi) continue;
+      const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
+      packed += row;
+      length += span.hi - span.lo + 1;
+      if (++packed_rows == RowCounts::kMaxSummedRows) flush();
+      if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
+        Span own = span;
+        const double py = g.CentreY(y);
+        for (const HalfSpace& hs : own_region) {
+          ClipToHalfSpace(g, hs, py, pz, &own);
+          if (own.lo > own.hi) break;
+        }
+        const int own_unknown = own.lo > own.hi ? 0 : p[own.hi + 1].unknown() - p[own.lo].unknown();
+        foreign += RowCounts::Unknown(row) - own_unknown;
+      }
     }
   }
-  flush_rows();
-  sums.Flush();
-  out.unknown = sums.unknown - sums.foreign;
-  out.foreign_unknown = sums.foreign;
-  out.occluded = sums.occluded;
-  out.known = sums.known;
-  out.free = sums.free;
-  out.below_floor = sums.below_floor;
+  flush();
+  out.unknown = unknown - foreign;
+  out.foreign_unknown = foreign;
+  out.occluded = occluded;
+  out.known = known;
+  out.free = free;
   return out;
 }
 

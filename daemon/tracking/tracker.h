@@ -119,14 +119,23 @@ struct TrackerStats {
 ///    gate reach birth_min_volume_m3 start a track on those voxels (centre =
 ///    mean, half-axes from their spread), unless a track without support is
 ///    near enough to re-acquire them (its filter restarts there, same id).
-/// After warm-up a cycle allocates nothing. Single-thread.
+///    The search is skipped when all unexplained voxels together stay below
+///    birth_min_volume_m3 (everybody tracked: one gate test per UNKNOWN
+///    voxel). One component gives at most one track per cycle; two people who
+///    enter touching get their second track in a later cycle, once the first
+///    track's gate no longer covers the second.
+/// After warm-up a cycle allocates nothing. Memory beyond the VoxelMap: 5
+/// bytes per voxel (component search) and the filters of max_tracks tracks.
+/// Single-thread.
 class Tracker {
  public:
   /// Builds the grid over `bounds`, the static voxel states and the collision
-  /// shapes from the scene.
+  /// shapes from the scene (start-up work: one obstacle depth map per camera
+  /// and one projection per voxel and camera).
   /// @throws common::ConfigError on bad options (every problem in one message).
   Tracker(const TrackerOptions& options, const common::Box3& bounds, const StaticScene& scene);
-  /// Uses hand-built voxel states and obstacles (tests, tools).
+  /// Uses hand-built voxel states and obstacles (tests, tools); the map's grid
+  /// replaces options.voxel_m.
   /// @throws common::ConfigError on bad options.
   Tracker(const TrackerOptions& options, VoxelMap map, CollisionWorld world);
 
@@ -135,7 +144,8 @@ class Tracker {
   void Update(const pipeline::OccupancySnapshot& snapshot);
 
   /// Runs a cycle on the current voxel states (set UNKNOWN through
-  /// voxel_map() first). stamp_ns: capture time of the data.
+  /// voxel_map() first). stamp_ns: capture time of the data; the step is the
+  /// time since the previous cycle, clamped to [1 ms, max_dt_s].
   void Step(std::int64_t stamp_ns);
 
   [[nodiscard]] VoxelMap& voxel_map() { return map_; }
@@ -172,14 +182,15 @@ class Tracker {
   /// Inside a live track's gate.
   [[nodiscard]] bool Explained(const Eigen::Vector3d& p_W) const;
 
-  TrackerOptions options_;
-  VoxelMap map_;
-  CollisionWorld world_;
-  std::vector<Slot> slots_;
   struct Gate {
     Eigen::Vector3d centre_W;
     Eigen::Vector3d inv_half_axes;  // 1 / half-axes.
   };
+
+  TrackerOptions options_;
+  VoxelMap map_;
+  CollisionWorld world_;
+  std::vector<Slot> slots_;
   std::vector<Gate> gates_;  // Per live slot, rebuilt each cycle.
   std::vector<Track> tracks_;
   std::vector<std::uint8_t> marks_;   // Per voxel: explained / unexplained / visited.

@@ -28,7 +28,8 @@ enum class VoxelState : std::uint8_t {
 /// Immutable value type; thread-safe for concurrent reads.
 class VoxelGrid {
  public:
-  /// Largest nx(): the row prefix sums count voxels in 16 bits.
+  /// Largest nx(): the likelihood adds up to 32 row counts in 21-bit fields
+  /// (see RowCounts).
   static constexpr int kMaxRowLength = 65535;
 
   VoxelGrid() = default;

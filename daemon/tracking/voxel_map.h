@@ -44,6 +44,8 @@ struct RowCounts {
   [[nodiscard]] int occluded() const { return Occluded(packed); }
   [[nodiscard]] int known() const { return Known(packed); }
 };
+static_assert(static_cast<std::uint64_t>(RowCounts::kMaxSummedRows) * VoxelGrid::kMaxRowLength <=
+              RowCounts::kMask);
 
 /// The voxel states of the cell.
 ///

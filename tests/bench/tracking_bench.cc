@@ -39,12 +39,13 @@ Vector3d PersonCentre(int p, int frame) {
   return kCentres[p % 3] + 0.6 * Vector3d(std::cos(a), std::sin(a), 0.0);
 }
 
-// Arg: people (1..3). One iteration = one tracker cycle (UNKNOWN update +
-// filters + births/deaths); the blob voxel lists are built beforehand.
+// Args: people (1..3), voxel edge in mm. One iteration = one tracker cycle
+// (UNKNOWN update + filters + births/deaths); the blob voxel lists are built
+// beforehand. per_person = CPU time per cycle / people.
 void BM_TrackerStep(benchmark::State& state) {
   const int people = static_cast<int>(state.range(0));
   tracking::TrackerOptions options;
-  options.voxel_m = 0.04;
+  options.voxel_m = 0.001 * static_cast<double>(state.range(1));
   options.filter.num_particles = 300;
   tracking::Tracker tracker(options, {Vector3d::Zero(), Vector3d(5, 4, 2.5)}, BenchCell());
   const tracking::VoxelGrid& g = tracker.voxel_map().grid();
@@ -71,7 +72,11 @@ void BM_TrackerStep(benchmark::State& state) {
   state.counters["tracks"] = static_cast<double>(tracker.tracks().size());
   state.counters["births"] = static_cast<double>(tracker.stats().births);
 }
-BENCHMARK(BM_TrackerStep)->Arg(1)->Arg(3)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_TrackerStep)
+    ->Args({1, 40})
+    ->Args({3, 40})
+    ->Args({1, 50})
+    ->Unit(benchmark::kMillisecond);
 
 // One likelihood sum of a person-sized ellipsoid on the same grid.
 void BM_EllipsoidCount(benchmark::State& state) {
