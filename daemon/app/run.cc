@@ -57,6 +57,9 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s) {
     std::snprintf(cam, sizeof(cam), " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
     line += cam;
     if (c.corrupt > 0) line += std::string(" corrupt ").append(std::to_string(c.corrupt));
+    if (c.fault != 0) {
+      line += std::string(" (").append(ToString(static_cast<capture::CameraFault>(c.fault))) + ")";
+    }
   }
   return line;
 }

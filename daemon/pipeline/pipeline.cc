@@ -87,6 +87,11 @@ void Pipeline::CaptureLoop(int camera) {
     if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
     const common::ImageU8* mask = &frame.grey;
     if (frame.kind != capture::FrameKind::kMask) {
+      // A frozen, black, saturated or moved camera certifies nothing: its
+      // frames are dropped and fusion counts it as seeing nothing.
+      const capture::CameraFault fault = c.health_monitor.Check(frame);
+      c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
+      if (fault != capture::CameraFault::kNone) continue;
       if (!c.background) {
         c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
                                                                      options_.background);
@@ -227,7 +232,8 @@ void Pipeline::FusionLoop() {
         c.seen = true;
       }
       const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
-      const bool live = c.seen && age_ms <= c.timeout_ms;
+      const std::uint8_t fault = c.fault.load(std::memory_order_relaxed);
+      const bool live = c.seen && age_ms <= c.timeout_ms && fault == 0;
       if (live) newest_stamp = std::max(newest_stamp, c.last_stamp_ns);
       quadtree_ptrs_[i] = live ? &c.quadtree : nullptr;
       const std::uint64_t frames = c.frames.load(std::memory_order_relaxed);
@@ -238,7 +244,11 @@ void Pipeline::FusionLoop() {
       }
       CameraHealth& h = health.cameras[i];
       if (h.name != c.model.name) h.name = c.model.name;
-      h.state = live ? CameraState::kOk : (c.seen ? CameraState::kStale : CameraState::kStarting);
+      h.state = live         ? CameraState::kOk
+                : fault != 0 ? CameraState::kFailed
+                : c.seen     ? CameraState::kStale
+                             : CameraState::kStarting;
+      h.fault = fault;
       h.fps = c.fps;
       h.frame_age_ms = age_ms;
       h.frames = frames;

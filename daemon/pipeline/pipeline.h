@@ -9,6 +9,7 @@
 #include <thread>
 #include <vector>
 
+#include "capture/camera_health.h"
 #include "capture/camera_source.h"
 #include "common/heartbeat.h"
 #include "common/latest_value.h"
@@ -110,6 +111,8 @@ class Pipeline {
     common::LatestValue<Slot> slot;
     std::atomic<std::uint64_t> frames{0};
     std::atomic<std::uint64_t> corrupt{0};                    // Frames of the wrong size.
+    std::atomic<std::uint8_t> fault{0};                       // capture::CameraFault.
+    capture::CameraHealthMonitor health_monitor;              // Capture thread only.
     int heartbeat = -1;                                       // Id in heartbeats_, if any.
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.
     // Fusion thread only.

@@ -15,7 +15,7 @@ enum class CameraState : std::uint8_t {
   kStarting = 0,  ///< No frame yet.
   kOk = 1,        ///< Frames arrive within the timeout.
   kStale = 2,     ///< No frame for longer than the timeout: treated as seeing nothing.
-  kFailed = 3,    ///< The source reported an error (reconnecting).
+  kFailed = 3,    ///< The source failed or its images are faulty (see CameraHealth::fault).
 };
 
 struct CameraHealth {
@@ -26,6 +26,9 @@ struct CameraHealth {
   std::uint64_t frames = 0;   ///< Frames received.
   std::uint64_t drops = 0;    ///< Frames overwritten before use (latest wins).
   std::uint64_t corrupt = 0;  ///< Frames counted and skipped as unreadable.
+  /// Image fault (capture::CameraFault: 0 none, 1 frozen, 2 black, 3 saturated,
+  /// 4 moved); a faulty camera sees nothing, as a stale one.
+  std::uint8_t fault = 0;
 };
 
 struct PipelineHealth {

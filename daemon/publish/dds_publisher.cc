@@ -145,6 +145,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
     out.frames = c.frames;
     out.drops = c.drops;
     out.corrupt = c.corrupt;
+    out.fault = c.fault;
   }
   st.silhouette_ms = static_cast<float>(health.silhouette_ms);
   st.skew_ms = static_cast<float>(health.skew_ms);

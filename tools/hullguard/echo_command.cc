@@ -121,6 +121,11 @@ std::uint64_t Cells(const dds_sequence_hullguard_GridRun& runs) {
   return n;
 }
 
+const char* FaultName(std::uint8_t fault) {
+  static constexpr const char* kNames[] = {"none", "frozen", "black", "saturated", "moved"};
+  return fault < std::size(kNames) ? kNames[fault] : "unknown";
+}
+
 double OccupiedVolumeM3(const hullguard_Occupancy& s) {
   double volume = 1.0;
   for (int i = 0; i < 3; ++i) volume *= static_cast<double>(s.bounds_max[i]) - s.bounds_min[i];
@@ -177,11 +182,12 @@ void PrintStatus(const hullguard_Status& s, bool json) {
     if (json) {
       std::snprintf(buf, sizeof(buf), "%s{\"name\": ", i == 0 ? "" : ", ");
       cameras += buf + JsonString(c.name);
-      std::snprintf(buf, sizeof(buf), ", \"state\": \"%s\", \"fps\": %.2f}",
-                    CameraStateName(c.state), c.fps);
+      std::snprintf(buf, sizeof(buf), ", \"state\": \"%s\", \"fps\": %.2f, \"fault\": \"%s\"}",
+                    CameraStateName(c.state), c.fps, FaultName(c.fault));
       cameras += buf;
     } else {
-      std::snprintf(buf, sizeof(buf), ":%s@%.1ffps", CameraStateName(c.state), c.fps);
+      std::snprintf(buf, sizeof(buf), ":%s@%.1ffps%s%s", CameraStateName(c.state), c.fps,
+                    c.fault != 0 ? ":" : "", c.fault != 0 ? FaultName(c.fault) : "");
       cameras += (i == 0 ? "" : " ") + std::string(c.name != nullptr ? c.name : "") + buf;
     }
   }

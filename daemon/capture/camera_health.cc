@@ -1,0 +1,149 @@
+#include "capture/camera_health.h"
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+
+namespace hg::capture {
+
+const char* ToString(CameraFault fault) {
+  switch (fault) {
+    case CameraFault::kNone:
+      return "none";
+    case CameraFault::kFrozen:
+      return "frozen";
+    case CameraFault::kBlack:
+      return "black";
+    case CameraFault::kSaturated:
+      return "saturated";
+    case CameraFault::kMoved:
+      return "moved";
+  }
+  return "?";
+}
+
+CameraHealthMonitor::CameraHealthMonitor(CameraHealthOptions options) : options_(options) {
+  options_.sample_step_px = std::max(1, options_.sample_step_px);
+}
+
+void CameraHealthMonitor::Reset() {
+  reference_count_ = 0;
+  reference_edges_.clear();
+  std::fill(reference_sum_.begin(), reference_sum_.end(), 0);
+  identical_run_ = 0;
+  moved_run_ = 0;
+  have_previous_ = false;
+  moved_ = false;
+  edges_kept_ = 1.0;
+  fault_ = CameraFault::kNone;
+}
+
+void CameraHealthMonitor::Sample(const Frame& frame) {
+  const bool rgb = frame.kind == FrameKind::kRgb;
+  const int width = rgb ? frame.rgb.width : frame.grey.width;
+  const int height = rgb ? frame.rgb.height : frame.grey.height;
+  const int step = options_.sample_step_px;
+  const int cols = (width + step - 1) / step;
+  const int rows = (height + step - 1) / step;
+  if (cols != cols_ || rows != rows_) {
+    // First frame (or a new size): size the buffers once.
+    cols_ = cols;
+    rows_ = rows;
+    const auto n = static_cast<std::size_t>(cols) * rows;
+    current_.assign(n, 0);
+    previous_.assign(n, 0);
+    reference_sum_.assign(n, 0);
+    reference_.assign(n, 0);
+    reference_edges_.reserve(n);
+    Reset();
+  }
+  for (int r = 0; r < rows_; ++r) {
+    const int v = r * step;
+    std::uint8_t* out = current_.data() + static_cast<std::size_t>(r) * cols_;
+    if (rgb) {
+      for (int c = 0; c < cols_; ++c) {
+        const std::uint8_t* p = frame.rgb.Pixel(c * step, v);
+        out[c] = static_cast<std::uint8_t>((77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8);
+      }
+    } else {
+      const std::uint8_t* row = frame.grey.pixels.data() + static_cast<std::size_t>(v) * width;
+      for (int c = 0; c < cols_; ++c) out[c] = row[c * step];
+    }
+  }
+}
+
+bool CameraHealthMonitor::EdgeAt(const std::vector<std::uint8_t>& img, int x, int y) const {
+  if (x <= 0 || y <= 0 || x >= cols_ - 1 || y >= rows_ - 1) return false;
+  const auto at = [&](int cx, int cy) {
+    return static_cast<int>(img[static_cast<std::size_t>(cy) * cols_ + cx]);
+  };
+  const int gx = at(x + 1, y) - at(x - 1, y);
+  const int gy = at(x, y + 1) - at(x, y - 1);
+  return std::abs(gx) + std::abs(gy) >= 2 * options_.edge_threshold;
+}
+
+CameraFault CameraHealthMonitor::Check(const Frame& frame) {
+  if (frame.kind == FrameKind::kMask) return fault_;
+  Sample(frame);
+  const std::size_t n = current_.size();
+
+  // Frozen: bit-identical samples frame after frame. Real sensors have noise.
+  if (have_previous_ && std::memcmp(current_.data(), previous_.data(), n) == 0) {
+    ++identical_run_;
+  } else {
+    identical_run_ = 0;
+  }
+  std::swap(current_, previous_);  // previous_ now holds this frame.
+  have_previous_ = true;
+  const std::vector<std::uint8_t>& img = previous_;
+
+  std::uint64_t sum = 0;
+  for (const std::uint8_t g : img) sum += g;
+  const double mean = static_cast<double>(sum) / static_cast<double>(n);
+
+  if (!moved_ && mean >= options_.dark_level && mean <= options_.saturated_level) {
+    if (reference_count_ < options_.reference_frames) {
+      for (std::size_t i = 0; i < n; ++i) reference_sum_[i] += img[i];
+      if (++reference_count_ == options_.reference_frames) {
+        for (std::size_t i = 0; i < n; ++i) {
+          reference_[i] = static_cast<std::uint8_t>(reference_sum_[i] / reference_count_);
+        }
+        reference_edges_.clear();
+        for (int y = 1; y < rows_ - 1; ++y) {
+          for (int x = 1; x < cols_ - 1; ++x) {
+            if (EdgeAt(reference_, x, y)) {
+              reference_edges_.push_back(static_cast<std::uint32_t>(y * cols_ + x));
+            }
+          }
+        }
+      }
+    } else if (!reference_edges_.empty()) {
+      // An edge counts as kept when the frame has an edge at the same sample.
+      // The central differences span two grid steps, so a view shifted by
+      // less than about a step keeps its edges and one shifted by more loses
+      // them.
+      std::size_t kept = 0;
+      for (const std::uint32_t i : reference_edges_) {
+        kept += EdgeAt(img, static_cast<int>(i) % cols_, static_cast<int>(i) / cols_) ? 1 : 0;
+      }
+      edges_kept_ = static_cast<double>(kept) / static_cast<double>(reference_edges_.size());
+      moved_run_ = edges_kept_ < options_.min_edges_kept ? moved_run_ + 1 : 0;
+      if (moved_run_ >= options_.moved_frames) moved_ = true;
+    }
+  }
+
+  if (moved_) {
+    fault_ = CameraFault::kMoved;
+  } else if (identical_run_ >= options_.frozen_frames) {
+    fault_ = CameraFault::kFrozen;
+  } else if (mean < options_.dark_level) {
+    fault_ = CameraFault::kBlack;
+  } else if (mean > options_.saturated_level) {
+    fault_ = CameraFault::kSaturated;
+  } else {
+    fault_ = CameraFault::kNone;
+  }
+  return fault_;
+}
+
+}  // namespace hg::capture

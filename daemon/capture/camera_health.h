@@ -1,0 +1,83 @@
+#pragma once
+/// @file
+/// Image-level camera faults: frozen frames, black or saturated images, and a
+/// camera that moved (bumped) since its reference view was taken.
+
+#include <cstdint>
+#include <vector>
+
+#include "capture/camera_source.h"
+
+namespace hg::capture {
+
+/// What is wrong with a camera's images (0: nothing).
+enum class CameraFault : std::uint8_t {
+  kNone = 0,
+  kFrozen = 1,     ///< The same image again and again (a hung driver or camera).
+  kBlack = 2,      ///< Lens covered, lights off, iris closed.
+  kSaturated = 3,  ///< Blinded by a lamp, exposure run away.
+  kMoved = 4,      ///< The view of the static background no longer matches the reference.
+};
+
+/// Stable lower-case name ("none", "frozen", "black", "saturated", "moved").
+[[nodiscard]] const char* ToString(CameraFault fault);
+
+struct CameraHealthOptions {
+  /// Images are checked on a grid of this pitch; a view that shifts by about
+  /// a step or more counts as moved (8 px: about 0.4 degrees at Full HD with
+  /// a 1.45 rad lens).
+  int sample_step_px = 8;
+  int frozen_frames = 15;        ///< Identical consecutive frames before "frozen".
+  int dark_level = 12;           ///< Mean grey below this: black.
+  int saturated_level = 243;     ///< Mean grey above this: saturated.
+  int reference_frames = 10;     ///< Frames averaged into the reference view at start-up.
+  int edge_threshold = 24;       ///< Gradient (grey levels per sample step) that makes an edge.
+  double min_edges_kept = 0.45;  ///< Share of reference edges still present, below: moved.
+  int moved_frames = 10;         ///< Consecutive frames below min_edges_kept before "moved".
+};
+
+/// Watches one camera's images (kMono and kRgb frames; masks are not checked)
+/// on a sparse grid: cheap enough for every frame of every camera.
+///
+/// A moved camera is found by its edges: the strong grey-level gradients of
+/// the reference view (the first frames, taken with the cell as installed)
+/// must mostly still be there, at the same grid sample. People hide some of them
+/// for a while; a camera turned by a fraction of a degree loses nearly all at
+/// once and for good. A camera whose calibration no longer holds must not
+/// certify anything free, so "moved" stays until Reset() (after recalibration).
+///
+/// Thread-compatible; buffers are sized on the first frame, Check() does not
+/// allocate afterwards.
+class CameraHealthMonitor {
+ public:
+  explicit CameraHealthMonitor(CameraHealthOptions options = {});
+
+  /// Checks one frame and returns the camera's fault now.
+  CameraFault Check(const Frame& frame);
+  [[nodiscard]] CameraFault fault() const { return fault_; }
+  /// Share of the reference edges found in the last frame (1 before the
+  /// reference exists).
+  [[nodiscard]] double edges_kept() const { return edges_kept_; }
+  /// Forgets the reference and every fault (after the camera was re-aimed).
+  void Reset();
+
+ private:
+  void Sample(const Frame& frame);
+  [[nodiscard]] bool EdgeAt(const std::vector<std::uint8_t>& img, int x, int y) const;
+
+  CameraHealthOptions options_;
+  int cols_ = 0, rows_ = 0;
+  std::vector<std::uint8_t> current_, previous_;
+  std::vector<std::uint32_t> reference_sum_;
+  std::vector<std::uint8_t> reference_;
+  std::vector<std::uint32_t> reference_edges_;  // Sample indices of reference edges.
+  int reference_count_ = 0;
+  int identical_run_ = 0;
+  int moved_run_ = 0;
+  bool have_previous_ = false;
+  bool moved_ = false;
+  double edges_kept_ = 1.0;
+  CameraFault fault_ = CameraFault::kNone;
+};
+
+}  // namespace hg::capture

@@ -1,0 +1,111 @@
+// Camera faults on simulated colour frames of the demo cell: people walking
+// are no fault; a camera turned by a degree is "moved" and stays so; frozen,
+// black and saturated images are recognised.
+#include "capture/camera_health.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <memory>
+
+#include <Eigen/Geometry>
+
+#include "sim/colour_renderer.h"
+#include "sim/scene.h"
+
+namespace hg::capture {
+namespace {
+
+constexpr int kScale = 3;  // Full HD / 3 = 640 x 360.
+
+// The demo cell with its camera 0 scaled down, optionally turned about the
+// camera's own vertical axis by `yaw_deg` (the centre stays where it is).
+sim::Scene DemoCell(double yaw_deg) {
+  sim::Scene scene = sim::LoadScene(std::string(HG_SOURCE_DIR) + "/config/scenes/demo_cell.yaml");
+  scene.cameras.resize(1);
+  geometry::CameraModel& m = scene.cameras[0].model;
+  m.width /= kScale;
+  m.height /= kScale;
+  m.K.topRows(2) /= kScale;
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  m.R_CW = turn * m.R_CW;
+  m.t_CW = turn * m.t_CW;
+  return scene;
+}
+
+class Camera {
+ public:
+  explicit Camera(double yaw_deg) : scene_(DemoCell(yaw_deg)), renderer_(scene_, 0) {}
+  const Frame& At(int index) {
+    const double t = 10.0 + index / 30.0;
+    std::vector<sim::BodyState> people;
+    for (const sim::Person& p : scene_.people) people.push_back(sim::EvaluatePerson(p, t));
+    frame_.kind = FrameKind::kRgb;
+    renderer_.Render(people, t, static_cast<std::uint64_t>(index), &frame_.rgb);
+    frame_.index = static_cast<std::uint64_t>(index);
+    return frame_;
+  }
+
+ private:
+  sim::Scene scene_;
+  sim::ColourRenderer renderer_;
+  Frame frame_;
+};
+
+TEST(CameraHealthTest, PeopleWalkingAreNoFaultAndATurnedCameraIsMoved) {
+  Camera installed(0.0), bumped(1.0);
+  CameraHealthOptions options;
+  options.sample_step_px = 8 / kScale;  // The Full HD grid, in these smaller images.
+  CameraHealthMonitor monitor(options);
+  double least_kept = 1.0;
+  for (int i = 0; i < 60; ++i) {
+    ASSERT_EQ(monitor.Check(installed.At(i)), CameraFault::kNone) << "frame " << i;
+    if (i >= 10) least_kept = std::min(least_kept, monitor.edges_kept());
+  }
+  EXPECT_GT(least_kept, 0.7) << "walking people should hide few of the reference edges";
+  int first_moved = -1;
+  for (int i = 60; i < 90; ++i) {
+    if (monitor.Check(bumped.At(i)) == CameraFault::kMoved && first_moved < 0) first_moved = i;
+  }
+  ASSERT_GE(first_moved, 0) << "edges kept " << monitor.edges_kept();
+  EXPECT_LE(first_moved, 60 + options.moved_frames + 1);
+  // Moved stays until a reset, even if the view happens to look right again.
+  EXPECT_EQ(monitor.Check(installed.At(90)), CameraFault::kMoved);
+  monitor.Reset();
+  EXPECT_EQ(monitor.Check(installed.At(91)), CameraFault::kNone);
+}
+
+TEST(CameraHealthTest, FrozenBlackAndSaturatedImages) {
+  Camera camera(0.0);
+  CameraHealthMonitor monitor;
+  for (int i = 0; i < 12; ++i) ASSERT_EQ(monitor.Check(camera.At(i)), CameraFault::kNone);
+  const Frame still = camera.At(12);
+  CameraFault fault = CameraFault::kNone;
+  int frames = 0;
+  while (fault == CameraFault::kNone && frames < 40) {
+    fault = monitor.Check(still);
+    ++frames;
+  }
+  EXPECT_EQ(fault, CameraFault::kFrozen);
+  EXPECT_EQ(frames, CameraHealthOptions{}.frozen_frames + 1);
+  EXPECT_EQ(monitor.Check(camera.At(13)), CameraFault::kNone) << "a new image ends it";
+
+  Frame black = camera.At(14);
+  std::fill(black.rgb.pixels.begin(), black.rgb.pixels.end(), 3);
+  EXPECT_EQ(monitor.Check(black), CameraFault::kBlack);
+  Frame white = camera.At(15);
+  std::fill(white.rgb.pixels.begin(), white.rgb.pixels.end(), 252);
+  EXPECT_EQ(monitor.Check(white), CameraFault::kSaturated);
+  EXPECT_EQ(monitor.Check(camera.At(16)), CameraFault::kNone);
+
+  // Grey (Mono8) images are checked the same way.
+  Frame mono;
+  mono.kind = FrameKind::kMono;
+  mono.grey = common::ImageU8(64, 48, 0);
+  CameraHealthMonitor grey;
+  EXPECT_EQ(grey.Check(mono), CameraFault::kBlack);
+}
+
+}  // namespace
+}  // namespace hg::capture
