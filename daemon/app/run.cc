@@ -5,6 +5,7 @@
 #include <map>
 #include <thread>
 
+#include "app/pipeline_setup.h"
 #include "app/service.h"
 #include "capture/replay_source.h"
 #include "capture/sim_source.h"
@@ -64,37 +65,11 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s) {
   return line;
 }
 
-silhouette::BackgroundModelOptions BackgroundOptions(const BackgroundConfig& b) {
-  silhouette::BackgroundModelOptions o;
-  o.learn_frames = b.learn_frames;
-  o.min_threshold = b.threshold;
-  o.adapt_rate = b.adapt_rate;
-  o.shadows_are_foreground = b.shadows_are_foreground;
-  o.noise_sigmas = b.noise_sigmas;
-  o.max_threshold = b.max_threshold;
-  o.guard_px = b.guard_px;
-  o.compensate_gain = b.compensate_gain;
-  return o;
-}
-
 }  // namespace
 
 int RunPipeline(const Config& config, double duration_s) {
-  pipeline::PipelineOptions options;
-  options.bounds = config.cell.bounds;
-  options.depth = config.octree.depth;
-  options.boundary_coarsening = config.octree.boundary_coarsening;
-  options.octree_threads = config.threads.octree;
-  options.rate_hz = config.timing.rate_hz;
-  options.deadline_ms = config.timing.deadline_ms;
-  options.publish_depth = config.octree.publish_depth;
-  options.max_speed_mps = config.motion.max_speed_mps;
-  options.min_camera_distance_m = config.motion.min_camera_distance_m;
-  options.background = BackgroundOptions(config.background);
-  options.background_dilate_px = config.background.dilate_px;
-
-  std::vector<geometry::TriangleMesh> obstacles;
-  for (const ObstacleConfig& o : config.obstacles) obstacles.push_back(geometry::LoadMesh(o.file));
+  const pipeline::PipelineOptions options = MakePipelineOptions(config);
+  const std::vector<geometry::TriangleMesh> obstacles = LoadObstacles(config);
 
   std::map<std::string, std::shared_ptr<const sim::Scene>> scenes;
   const auto start = std::chrono::steady_clock::now();
@@ -105,7 +80,8 @@ int RunPipeline(const Config& config, double duration_s) {
       if (!replay->realtime) {
         throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
                                   "': source.realtime: false needs a lock-step consumer; the "
-                                  "daemon's fixed-rate pipeline replays in real time only");
+                                  "daemon replays in real time (as fast as possible and "
+                                  "deterministic: hullguard replay)");
       }
       auto source = std::make_unique<capture::ReplaySource>(
           capture::ReadRecordingCamera(replay->directory, replay->camera), sim_clock);

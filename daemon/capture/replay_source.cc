@@ -100,6 +100,15 @@ bool ReplaySource::Load(int index, Frame* frame) {
   return true;
 }
 
+bool ReplaySource::ReadFrame(int index, Frame* frame) {
+  if (index < 0 || index >= recording_.frames || !Load(index, frame)) return false;
+  frame->stamp_ns =
+      clock_.epoch_ns +
+      std::chrono::duration_cast<std::chrono::nanoseconds>(Due(index) - clock_.start).count();
+  frame->index = static_cast<std::uint64_t>(index);
+  return true;
+}
+
 bool ReplaySource::Next(Frame* frame, std::chrono::milliseconds timeout) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point give_up = Clock::now() + timeout;

@@ -47,6 +47,13 @@ class ReplaySource : public CameraSource {
     return corrupt_.load(std::memory_order_relaxed);
   }
 
+  /// Lock-step use (`hullguard replay`): reads frame `index` into *frame
+  /// without pacing, stamped with the clock's epoch plus its capture time
+  /// (index / rate_hz + the camera's offset). False when the file is missing
+  /// or unreadable.
+  bool ReadFrame(int index, Frame* frame);
+  [[nodiscard]] const RecordingCamera& recording() const { return recording_; }
+
  private:
   [[nodiscard]] std::chrono::steady_clock::time_point Due(int index) const;
   bool Load(int index, Frame* frame);

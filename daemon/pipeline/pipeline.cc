@@ -69,7 +69,9 @@ void Pipeline::Start() {
 
 void Pipeline::Stop() {
   stop_.store(true);
-  for (auto& camera : cameras_) camera->source->Stop();
+  for (auto& camera : cameras_) {
+    if (camera->source) camera->source->Stop();
+  }
   for (std::thread& t : threads_) {
     if (t.joinable()) t.join();
   }
@@ -79,50 +81,53 @@ void Pipeline::Stop() {
 void Pipeline::CaptureLoop(int camera) {
   CameraRuntime& c = *cameras_[camera];
   capture::Frame frame;
-  common::ImageU8 foreground;  // Background model output (image sources only).
-  const int k = 2 * std::max(0, options_.background_dilate_px) + 1;
-  const cv::Mat dilate_kernel = cv::getStructuringElement(cv::MORPH_RECT, cv::Size(k, k));
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
     if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
-    const common::ImageU8* mask = &frame.grey;
-    if (frame.kind != capture::FrameKind::kMask) {
-      // A frozen, black, saturated or moved camera certifies nothing: its
-      // frames are dropped and fusion counts it as seeing nothing.
-      const capture::CameraFault fault = c.health_monitor.Check(frame);
-      c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
-      if (fault != capture::CameraFault::kNone) continue;
-      if (!c.background) {
-        c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
-                                                                     options_.background);
-      }
-      if (frame.kind == capture::FrameKind::kRgb) {
-        c.background->Apply(frame.rgb, &foreground);
-      } else {
-        c.background->Apply(frame.grey, &foreground);
-      }
-      if (options_.background_dilate_px > 0) {
-        cv::Mat m(foreground.height, foreground.width, CV_8UC1, foreground.pixels.data());
-        cv::dilate(m, m, dilate_kernel);
-      }
-      mask = &foreground;
-    }
-    if (mask->width != c.model.width || mask->height != c.model.height) {
-      c.corrupt.fetch_add(1, std::memory_order_relaxed);  // Not this camera's size.
-      continue;
-    }
-    Slot& slot = c.slot.BeginWrite();
-    if (c.undistorter) {
-      c.undistorter->Apply(mask->View(), 127, &slot.mask);
-    } else {
-      slot.mask.width = mask->width;
-      slot.mask.height = mask->height;
-      slot.mask.pixels.assign(mask->pixels.begin(), mask->pixels.end());
-    }
-    slot.stamp_ns = frame.stamp_ns;
-    c.slot.Publish();
-    c.frames.fetch_add(1, std::memory_order_relaxed);
+    ProcessFrame(camera, frame);
   }
+}
+
+void Pipeline::ProcessFrame(int camera, const capture::Frame& frame) {
+  CameraRuntime& c = *cameras_[camera];
+  const common::ImageU8* mask = &frame.grey;
+  if (frame.kind != capture::FrameKind::kMask) {
+    // A frozen, black, saturated or moved camera certifies nothing: its
+    // frames are dropped and fusion counts it as seeing nothing.
+    const capture::CameraFault fault = c.health_monitor.Check(frame);
+    c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
+    if (fault != capture::CameraFault::kNone) return;
+    if (!c.background) {
+      c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
+                                                                   options_.background);
+    }
+    if (frame.kind == capture::FrameKind::kRgb) {
+      c.background->Apply(frame.rgb, &c.foreground);
+    } else {
+      c.background->Apply(frame.grey, &c.foreground);
+    }
+    if (options_.background_dilate_px > 0) {
+      // The default 3x3 square, applied dilate_px times: a (2 r + 1)^2 square.
+      cv::Mat m(c.foreground.height, c.foreground.width, CV_8UC1, c.foreground.pixels.data());
+      cv::dilate(m, m, cv::Mat(), cv::Point(-1, -1), options_.background_dilate_px);
+    }
+    mask = &c.foreground;
+  }
+  if (mask->width != c.model.width || mask->height != c.model.height) {
+    c.corrupt.fetch_add(1, std::memory_order_relaxed);  // Not this camera's size.
+    return;
+  }
+  Slot& slot = c.slot.BeginWrite();
+  if (c.undistorter) {
+    c.undistorter->Apply(mask->View(), 127, &slot.mask);
+  } else {
+    slot.mask.width = mask->width;
+    slot.mask.height = mask->height;
+    slot.mask.pixels.assign(mask->pixels.begin(), mask->pixels.end());
+  }
+  slot.stamp_ns = frame.stamp_ns;
+  c.slot.Publish();
+  c.frames.fetch_add(1, std::memory_order_relaxed);
 }
 
 std::shared_ptr<OccupancySnapshot> Pipeline::FreeSnapshot() {
@@ -213,110 +218,124 @@ void Pipeline::FusionLoop() {
     next += period;
     const SteadyClock::time_point cycle_start = SteadyClock::now();
     if (next < cycle_start) next = cycle_start + period;  // Fell behind: skip, never burst.
-    const std::int64_t now_ns = RealtimeNs();
     const bool new_second = cycle_start - last_second >= std::chrono::seconds(1);
-
-    std::shared_ptr<OccupancySnapshot> snapshot = FreeSnapshot();
-    PipelineHealth& health = snapshot->health;
-    health.cameras.resize(cameras_.size());
-    health.degraded = false;
-    health.silhouette_ms = 0.0;
-    // Pass 1: newest frames, and which cameras are live.
-    std::int64_t newest_stamp = 0;
-    for (std::size_t i = 0; i < cameras_.size(); ++i) {
-      CameraRuntime& c = *cameras_[i];
-      if (const Slot* slot = c.slot.TakeNewest()) {
-        c.current = slot;
-        c.fresh = true;
-        c.last_stamp_ns = slot->stamp_ns;
-        c.seen = true;
-      }
-      const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
-      const std::uint8_t fault = c.fault.load(std::memory_order_relaxed);
-      const bool live = c.seen && age_ms <= c.timeout_ms && fault == 0;
-      if (live) newest_stamp = std::max(newest_stamp, c.last_stamp_ns);
-      quadtree_ptrs_[i] = live ? &c.quadtree : nullptr;
-      const std::uint64_t frames = c.frames.load(std::memory_order_relaxed);
-      if (new_second) {
-        c.fps = static_cast<double>(frames - c.frames_at_last_second) /
-                std::chrono::duration<double>(cycle_start - last_second).count();
-        c.frames_at_last_second = frames;
-      }
-      CameraHealth& h = health.cameras[i];
-      if (h.name != c.model.name) h.name = c.model.name;
-      h.state = live         ? CameraState::kOk
-                : fault != 0 ? CameraState::kFailed
-                : c.seen     ? CameraState::kStale
-                             : CameraState::kStarting;
-      h.fault = fault;
-      h.fps = c.fps;
-      h.frame_age_ms = age_ms;
-      h.frames = frames;
-      h.drops = c.slot.drops();
-      h.corrupt = c.corrupt.load(std::memory_order_relaxed) + c.source->corrupt_frames();
-      health.degraded = health.degraded || !live;
-    }
-    // Pass 2: quadtrees, each mask dilated for its camera's lag behind the
-    // newest frame. A camera lagging so far that no dilation covers the
-    // distance sees nothing this cycle.
-    std::int64_t oldest_used = newest_stamp;
-    for (std::size_t i = 0; i < cameras_.size(); ++i) {
-      CameraRuntime& c = *cameras_[i];
-      if (quadtree_ptrs_[i] != nullptr) {
-        const double lag_s = (newest_stamp - c.last_stamp_ns) * 1e-9;
-        const int radius = silhouette::CoveringRadiusPx(c.pinhole, options_.max_speed_mps * lag_s,
-                                                        options_.min_camera_distance_m);
-        if (radius < 0) {
-          quadtree_ptrs_[i] = nullptr;
-          health.cameras[i].state = CameraState::kStale;
-          health.degraded = true;
-        } else {
-          const int tiles = radius == 0 ? 0 : radius / silhouette::TileDilator::kTile + 1;
-          if (c.fresh || tiles != c.built_radius_tiles) {
-            if (tiles == 0) {
-              c.quadtree.Build(c.current->mask.View(), 127);
-            } else {
-              c.dilator.Apply(c.current->mask.View(), radius, &c.dilated);
-              c.quadtree.Build(c.dilated.View(), 127);
-            }
-            if (c.fresh) {
-              health.silhouette_ms =
-                  std::max(health.silhouette_ms, (RealtimeNs() - c.last_stamp_ns) * 1e-6);
-            }
-            c.fresh = false;
-            c.built_radius_tiles = tiles;
-          }
-          oldest_used = std::min(oldest_used, c.last_stamp_ns);
-        }
-      }
-      const bool live = quadtree_ptrs_[i] != nullptr;
-      // A camera that comes back was absent from the octree's view: every
-      // region is new to it.
-      if (live && !c.was_live) c.quadtree.MarkAllChanged();
-      c.was_live = live;
-    }
-    health.skew_ms = (newest_stamp - oldest_used) * 1e-6;
+    const double elapsed_s = std::chrono::duration<double>(cycle_start - last_second).count();
     if (new_second) last_second = cycle_start;
-
     octree::UpdateControl control;
     control.deadline = cycle_start + std::chrono::microseconds(
                                          static_cast<std::int64_t>(options_.deadline_ms * 1e3));
-    const octree::UpdateStats stats = tree_->Update(quadtree_ptrs_, control);
-    deadline_misses_ += stats.aborted;
-    FillCells(snapshot.get());
-    snapshot->sequence = ++sequence_;
-    snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
-    snapshot->complete = !stats.aborted;
-    snapshot->bounds = options_.bounds;
-    snapshot->depth = options_.publish_depth;
-    health.degraded = health.degraded || stats.aborted;
-    health.octree_ms = stats.update_ms;
-    health.deadline_misses = deadline_misses_;
-    health.cycles = sequence_;
-    health.cycle_ms = MsSince(cycle_start);
+    std::shared_ptr<OccupancySnapshot> snapshot =
+        RunCycle(RealtimeNs(), control, new_second ? elapsed_s : 0.0);
+    snapshot->health.cycle_ms = MsSince(cycle_start);
     latest_.store(snapshot, std::memory_order_release);
     if (consumer_) consumer_(snapshot);
   }
+}
+
+std::shared_ptr<const OccupancySnapshot> Pipeline::Step(std::int64_t now_ns) {
+  std::shared_ptr<OccupancySnapshot> snapshot = RunCycle(now_ns, octree::UpdateControl{}, 0.0);
+  latest_.store(snapshot, std::memory_order_release);
+  return snapshot;
+}
+
+std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
+                                                      const octree::UpdateControl& control,
+                                                      double fps_window_s) {
+  const bool new_second = fps_window_s > 0.0;
+  std::shared_ptr<OccupancySnapshot> snapshot = FreeSnapshot();
+  PipelineHealth& health = snapshot->health;
+  health.cameras.resize(cameras_.size());
+  health.degraded = false;
+  health.silhouette_ms = 0.0;
+  // Pass 1: newest frames, and which cameras are live.
+  std::int64_t newest_stamp = 0;
+  for (std::size_t i = 0; i < cameras_.size(); ++i) {
+    CameraRuntime& c = *cameras_[i];
+    if (const Slot* slot = c.slot.TakeNewest()) {
+      c.current = slot;
+      c.fresh = true;
+      c.last_stamp_ns = slot->stamp_ns;
+      c.seen = true;
+    }
+    const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
+    const std::uint8_t fault = c.fault.load(std::memory_order_relaxed);
+    const bool live = c.seen && age_ms <= c.timeout_ms && fault == 0;
+    if (live) newest_stamp = std::max(newest_stamp, c.last_stamp_ns);
+    quadtree_ptrs_[i] = live ? &c.quadtree : nullptr;
+    const std::uint64_t frames = c.frames.load(std::memory_order_relaxed);
+    if (new_second) {
+      c.fps = static_cast<double>(frames - c.frames_at_last_second) / fps_window_s;
+      c.frames_at_last_second = frames;
+    }
+    CameraHealth& h = health.cameras[i];
+    if (h.name != c.model.name) h.name = c.model.name;
+    h.state = live         ? CameraState::kOk
+              : fault != 0 ? CameraState::kFailed
+              : c.seen     ? CameraState::kStale
+                           : CameraState::kStarting;
+    h.fault = fault;
+    h.fps = c.fps;
+    h.frame_age_ms = age_ms;
+    h.frames = frames;
+    h.drops = c.slot.drops();
+    h.corrupt =
+        c.corrupt.load(std::memory_order_relaxed) + (c.source ? c.source->corrupt_frames() : 0);
+    health.degraded = health.degraded || !live;
+  }
+  // Pass 2: quadtrees, each mask dilated for its camera's lag behind the
+  // newest frame. A camera lagging so far that no dilation covers the
+  // distance sees nothing this cycle.
+  std::int64_t oldest_used = newest_stamp;
+  for (std::size_t i = 0; i < cameras_.size(); ++i) {
+    CameraRuntime& c = *cameras_[i];
+    if (quadtree_ptrs_[i] != nullptr) {
+      const double lag_s = (newest_stamp - c.last_stamp_ns) * 1e-9;
+      const int radius = silhouette::CoveringRadiusPx(c.pinhole, options_.max_speed_mps * lag_s,
+                                                      options_.min_camera_distance_m);
+      if (radius < 0) {
+        quadtree_ptrs_[i] = nullptr;
+        health.cameras[i].state = CameraState::kStale;
+        health.degraded = true;
+      } else {
+        const int tiles = radius == 0 ? 0 : radius / silhouette::TileDilator::kTile + 1;
+        if (c.fresh || tiles != c.built_radius_tiles) {
+          if (tiles == 0) {
+            c.quadtree.Build(c.current->mask.View(), 127);
+          } else {
+            c.dilator.Apply(c.current->mask.View(), radius, &c.dilated);
+            c.quadtree.Build(c.dilated.View(), 127);
+          }
+          if (c.fresh) {
+            health.silhouette_ms =
+                std::max(health.silhouette_ms, (RealtimeNs() - c.last_stamp_ns) * 1e-6);
+          }
+          c.fresh = false;
+          c.built_radius_tiles = tiles;
+        }
+        oldest_used = std::min(oldest_used, c.last_stamp_ns);
+      }
+    }
+    const bool live = quadtree_ptrs_[i] != nullptr;
+    // A camera that comes back was absent from the octree's view: every
+    // region is new to it.
+    if (live && !c.was_live) c.quadtree.MarkAllChanged();
+    c.was_live = live;
+  }
+  health.skew_ms = (newest_stamp - oldest_used) * 1e-6;
+
+  const octree::UpdateStats stats = tree_->Update(quadtree_ptrs_, control);
+  deadline_misses_ += stats.aborted;
+  FillCells(snapshot.get());
+  snapshot->sequence = ++sequence_;
+  snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
+  snapshot->complete = !stats.aborted;
+  snapshot->bounds = options_.bounds;
+  snapshot->depth = options_.publish_depth;
+  health.degraded = health.degraded || stats.aborted;
+  health.octree_ms = stats.update_ms;
+  health.deadline_misses = deadline_misses_;
+  health.cycles = sequence_;
+  return snapshot;
 }
 
 }  // namespace hg::pipeline

@@ -52,6 +52,7 @@ struct PipelineOptions {
 
 struct PipelineCamera {
   geometry::CameraModel model;  ///< As calibrated (may distort).
+  /// May be null in lock-step use (Feed() and Step(), no Start()).
   std::unique_ptr<capture::CameraSource> source;
   int timeout_ms = 200;  ///< Silent longer than this: the camera sees nothing.
 };
@@ -93,6 +94,13 @@ class Pipeline {
   /// Stops every thread and returns when they have ended (within about 100 ms).
   void Stop();
 
+  /// Lock-step use (replay, tests), without Start(): hands camera `camera` a
+  /// frame as its capture thread would (background model, undistortion), and
+  /// runs one fusion cycle at `now_ns` without a deadline. Deterministic: the
+  /// same frames and times give the same snapshot whatever the thread count.
+  void Feed(int camera, const capture::Frame& frame) { ProcessFrame(camera, frame); }
+  std::shared_ptr<const OccupancySnapshot> Step(std::int64_t now_ns);
+
   /// The newest snapshot (nullptr before the first cycle). Thread-safe.
   [[nodiscard]] std::shared_ptr<const OccupancySnapshot> Latest() const {
     return latest_.load(std::memory_order_acquire);
@@ -113,6 +121,7 @@ class Pipeline {
     std::atomic<std::uint64_t> corrupt{0};                    // Frames of the wrong size.
     std::atomic<std::uint8_t> fault{0};                       // capture::CameraFault.
     capture::CameraHealthMonitor health_monitor;              // Capture thread only.
+    common::ImageU8 foreground;                               // Capture thread only.
     int heartbeat = -1;                                       // Id in heartbeats_, if any.
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.
     // Fusion thread only.
@@ -139,7 +148,12 @@ class Pipeline {
   };
 
   void CaptureLoop(int camera);
+  void ProcessFrame(int camera, const capture::Frame& frame);
   void FusionLoop();
+  /// One fusion cycle; fps_window_s > 0 also updates the frame rates.
+  std::shared_ptr<OccupancySnapshot> RunCycle(std::int64_t now_ns,
+                                              const octree::UpdateControl& control,
+                                              double fps_window_s);
   std::shared_ptr<OccupancySnapshot> FreeSnapshot();
   void FillCells(OccupancySnapshot* snapshot);
 

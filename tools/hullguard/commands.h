@@ -16,6 +16,7 @@ void RegisterCarve(CLI::App& app, int* exit_code);
 void RegisterDemo(CLI::App& app, int* exit_code);
 void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
+void RegisterReplay(CLI::App& app, int* exit_code);
 /// Only in builds with Cyclone DDS (HG_WITH_DDS).
 void RegisterEcho(CLI::App& app, int* exit_code);
 

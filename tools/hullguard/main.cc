@@ -13,6 +13,7 @@ int main(int argc, char** argv) {
   hg::tools::RegisterDemo(app, &exit_code);
   hg::tools::RegisterSynth(app, &exit_code);
   hg::tools::RegisterBench(app, &exit_code);
+  hg::tools::RegisterReplay(app, &exit_code);
 #ifdef HG_WITH_DDS
   hg::tools::RegisterEcho(app, &exit_code);
 #endif
