@@ -7,8 +7,12 @@
 
 #include "app/pipeline_setup.h"
 #include "app/service.h"
+#ifdef HG_WITH_ARAVIS
+#include "capture/aravis_source.h"
+#endif
 #include "capture/replay_source.h"
 #include "capture/sim_source.h"
+#include "capture/v4l2_source.h"
 #include "common/config_error.h"
 #include "common/heartbeat.h"
 #include "geometry/mesh.h"
@@ -88,11 +92,50 @@ int RunPipeline(const Config& config, double duration_s) {
       cameras.push_back({c.model, std::move(source), c.timeout_ms});
       continue;
     }
+#ifdef HG_WITH_ARAVIS
+    if (const auto* gige = std::get_if<AravisSourceConfig>(&c.source)) {
+      // The config's enums list the same values in the same order.
+      static_assert(static_cast<int>(capture::AravisOptions::Pixel::kRGB8) ==
+                    static_cast<int>(PixelFormat::kRGB8));
+      static_assert(static_cast<int>(capture::AravisOptions::Trigger::kHardware) ==
+                    static_cast<int>(Trigger::kHardware));
+      capture::AravisOptions o;
+      o.device = gige->device;
+      o.pixel_format = static_cast<capture::AravisOptions::Pixel>(gige->pixel_format);
+      o.exposure_us = gige->exposure_us;
+      o.gain_db = gige->gain_db;
+      o.frame_rate_hz = gige->frame_rate_hz;
+      o.trigger = static_cast<capture::AravisOptions::Trigger>(gige->trigger);
+      o.packet_size = gige->packet_size;
+      o.socket_buffer_bytes = gige->socket_buffer_bytes;
+      o.width = c.model.width;
+      o.height = c.model.height;
+      o.frame_timeout = std::chrono::milliseconds(c.timeout_ms);
+      cameras.push_back(
+          {c.model, std::make_unique<capture::AravisSource>(std::move(o)), c.timeout_ms});
+      continue;
+    }
+#endif
+    if (const auto* usb = std::get_if<V4l2SourceConfig>(&c.source)) {
+      static_assert(static_cast<int>(capture::V4l2Options::Format::kMjpeg) ==
+                    static_cast<int>(V4l2Format::kMjpeg));
+      capture::V4l2Options o;
+      o.device = usb->device;
+      o.format = static_cast<capture::V4l2Options::Format>(usb->format);
+      o.frame_rate_hz = usb->frame_rate_hz;
+      o.exposure = usb->exposure;
+      o.width = c.model.width;
+      o.height = c.model.height;
+      cameras.push_back(
+          {c.model, std::make_unique<capture::V4l2Source>(std::move(o)), c.timeout_ms});
+      continue;
+    }
     const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
     if (sim_source == nullptr) {
       throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
                                 "': source type '" + ToString(TypeOf(c.source)) +
-                                "' is not available in this build yet (sim and replay are)");
+                                "' is not available in this build (sim, replay, v4l2 and, with "
+                                "libaravis-dev, aravis are)");
     }
     auto& scene = scenes[sim_source->scene];
     if (!scene) scene = std::make_shared<const sim::Scene>(sim::LoadScene(sim_source->scene));

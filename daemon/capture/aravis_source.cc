@@ -1,0 +1,616 @@
+#include "capture/aravis_source.h"
+
+#include <arpa/inet.h>
+#include <arv.h>
+
+#include <algorithm>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <memory>
+#include <utility>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace hg::capture {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+
+constexpr milliseconds kMinBackoff{100};
+constexpr milliseconds kMaxBackoff{2000};
+// Next() polls the stream in slices this long so Stop() takes effect soon.
+constexpr milliseconds kPollSlice{20};
+// A failure message is repeated at most this often while it does not change.
+constexpr std::chrono::seconds kRepeatLog{30};
+// Broadcast discovery answers within about a second; sources opening together
+// share one discovery run instead of each waiting for its own.
+constexpr milliseconds kDiscoveryReuse{1500};
+
+// Aravis' device list and interface objects are process globals without
+// locking of their own: every source discovers and opens cameras under this.
+std::mutex& AravisSystemMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+void Log(const std::string& device, const char* format, ...) __attribute__((format(printf, 2, 3)));
+void Log(const std::string& device, const char* format, ...) {
+  char text[512];
+  va_list args;
+  va_start(args, format);
+  std::vsnprintf(text, sizeof(text), format, args);
+  va_end(args);
+  std::fprintf(stderr, "aravis[%s]: %s\n", device.empty() ? "first camera" : device.c_str(), text);
+}
+
+// Takes the message out of a GError and frees it. True if there was one.
+bool TakeError(GError** error, std::string* message, const char* what) {
+  if (*error == nullptr) return false;
+  if (message != nullptr) *message = std::string(what) + ": " + (*error)->message;
+  g_clear_error(error);
+  return true;
+}
+
+ArvPixelFormat ToArv(AravisOptions::Pixel pixel) {
+  switch (pixel) {
+    case AravisOptions::Pixel::kMono8:
+      return ARV_PIXEL_FORMAT_MONO_8;
+    case AravisOptions::Pixel::kBayerRG8:
+      return ARV_PIXEL_FORMAT_BAYER_RG_8;
+    case AravisOptions::Pixel::kBayerGB8:
+      return ARV_PIXEL_FORMAT_BAYER_GB_8;
+    case AravisOptions::Pixel::kBayerGR8:
+      return ARV_PIXEL_FORMAT_BAYER_GR_8;
+    case AravisOptions::Pixel::kBayerBG8:
+      return ARV_PIXEL_FORMAT_BAYER_BG_8;
+    case AravisOptions::Pixel::kRGB8:
+      return ARV_PIXEL_FORMAT_RGB_8_PACKED;
+  }
+  return ARV_PIXEL_FORMAT_MONO_8;
+}
+
+// OpenCV names a Bayer pattern by the 2x2 block that starts at the second row
+// and column, GenICam by the one at the origin: GenICam BayerRG is OpenCV's
+// BayerBG (checked against known mosaics in the tests).
+int OpenCvBayerCode(AravisOptions::Pixel pixel) {
+  switch (pixel) {
+    case AravisOptions::Pixel::kBayerRG8:
+      return cv::COLOR_BayerBG2RGB;
+    case AravisOptions::Pixel::kBayerGB8:
+      return cv::COLOR_BayerGR2RGB;
+    case AravisOptions::Pixel::kBayerGR8:
+      return cv::COLOR_BayerGB2RGB;
+    case AravisOptions::Pixel::kBayerBG8:
+      return cv::COLOR_BayerRG2RGB;
+    default:
+      return -1;
+  }
+}
+
+bool IsIpv4Address(const std::string& text) {
+  in_addr address{};
+  return inet_pton(AF_INET, text.c_str(), &address) == 1;
+}
+
+// The Aravis device id to open for `device`: an IPv4 address is opened as it
+// is (unicast, no broadcast discovery needed); otherwise the discovered
+// devices are matched by id, serial number, model, address or MAC.
+bool ResolveDeviceId(const std::string& device, std::string* id, std::string* error) {
+  if (IsIpv4Address(device)) {
+    *id = device;
+    return true;
+  }
+  static Clock::time_point last_discovery;
+  static bool discovered = false;
+  const Clock::time_point now = Clock::now();
+  if (!discovered || now - last_discovery > kDiscoveryReuse) {
+    arv_update_device_list();
+    last_discovery = Clock::now();
+    discovered = true;
+  }
+  const unsigned n = arv_get_n_devices();
+  if (device.empty()) {
+    if (n == 0) {
+      *error = "no camera discovered";
+      return false;
+    }
+    *id = arv_get_device_id(0);
+    return true;
+  }
+  auto is = [&](const char* s) { return s != nullptr && device == s; };
+  for (unsigned i = 0; i < n; ++i) {
+    if (is(arv_get_device_id(i)) || is(arv_get_device_serial_nbr(i)) ||
+        is(arv_get_device_model(i)) || is(arv_get_device_address(i)) ||
+        is(arv_get_device_physical_id(i))) {
+      *id = arv_get_device_id(i);
+      return true;
+    }
+  }
+  *error =
+      "no camera with this serial, name or address among the " + std::to_string(n) + " discovered";
+  return false;
+}
+
+// Copies rows of `row_bytes` bytes `stride` apart into a packed image.
+void CopyRows(const std::uint8_t* src, std::size_t stride, std::size_t row_bytes, int rows,
+              std::uint8_t* dst) {
+  if (stride == row_bytes) {
+    std::memcpy(dst, src, row_bytes * static_cast<std::size_t>(rows));
+    return;
+  }
+  for (int r = 0; r < rows; ++r) {
+    std::memcpy(dst + r * row_bytes, src + r * stride, row_bytes);
+  }
+}
+
+// Fills *frame from a complete buffer. False (the frame unusable) for a
+// payload that is no image, another pixel format than requested, another size
+// than expected, or too little data.
+bool ConvertBuffer(ArvBuffer* buffer, const AravisOptions& options, Frame* frame) {
+  const ArvBufferPayloadType payload = arv_buffer_get_payload_type(buffer);
+  if (payload != ARV_BUFFER_PAYLOAD_TYPE_IMAGE &&
+      payload != ARV_BUFFER_PAYLOAD_TYPE_EXTENDED_CHUNK_DATA) {
+    return false;
+  }
+  const int w = arv_buffer_get_image_width(buffer);
+  const int h = arv_buffer_get_image_height(buffer);
+  if (w <= 0 || h <= 0) return false;
+  if ((options.width > 0 && w != options.width) || (options.height > 0 && h != options.height)) {
+    return false;
+  }
+  if (arv_buffer_get_image_pixel_format(buffer) != ToArv(options.pixel_format)) return false;
+  size_t size = 0;
+  const auto* data = static_cast<const std::uint8_t*>(arv_buffer_get_image_data(buffer, &size));
+  gint x_padding = 0;
+  gint y_padding = 0;
+  arv_buffer_get_image_padding(buffer, &x_padding, &y_padding);
+  const std::size_t bytes_per_pixel = options.pixel_format == AravisOptions::Pixel::kRGB8 ? 3 : 1;
+  const std::size_t row_bytes = static_cast<std::size_t>(w) * bytes_per_pixel;
+  const std::size_t stride = row_bytes + static_cast<std::size_t>(std::max(x_padding, 0));
+  if (data == nullptr || size < stride * static_cast<std::size_t>(h - 1) + row_bytes) return false;
+
+  const std::size_t pixels = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  switch (options.pixel_format) {
+    case AravisOptions::Pixel::kMono8:
+      frame->kind = FrameKind::kMono;
+      frame->grey.width = w;
+      frame->grey.height = h;
+      frame->grey.pixels.resize(pixels);  // Allocates only when the size grows.
+      CopyRows(data, stride, row_bytes, h, frame->grey.pixels.data());
+      return true;
+    case AravisOptions::Pixel::kRGB8:
+      frame->kind = FrameKind::kRgb;
+      frame->rgb.width = w;
+      frame->rgb.height = h;
+      frame->rgb.pixels.resize(pixels * 3);
+      CopyRows(data, stride, row_bytes, h, frame->rgb.pixels.data());
+      return true;
+    default: {
+      frame->kind = FrameKind::kRgb;
+      frame->rgb.width = w;
+      frame->rgb.height = h;
+      frame->rgb.pixels.resize(pixels * 3);
+      // Both Mats wrap existing memory: cvtColor writes into the frame's
+      // buffer, which has the right size and type, without reallocating.
+      const cv::Mat mosaic(h, w, CV_8UC1, const_cast<std::uint8_t*>(data), stride);
+      cv::Mat rgb(h, w, CV_8UC3, frame->rgb.pixels.data());
+      cv::cvtColor(mosaic, rgb, OpenCvBayerCode(options.pixel_format));
+      return true;
+    }
+  }
+}
+
+std::int64_t RealtimeNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+}  // namespace
+
+// One open camera with its stream and buffers. Opened and released on the
+// control thread; streamed from by the capture thread in between.
+struct AravisSource::Session {
+  ArvCamera* camera = nullptr;
+  ArvStream* stream = nullptr;
+  int width = 0;
+  int height = 0;
+  std::int64_t exposure_ns = 0;   // Read back at connection; 0 when unknown.
+  double trigger_period_s = 0.0;  // Software trigger only.
+  // Capture thread only: Aravis' own counters, last seen.
+  guint64 underruns_seen = 0;
+  guint64 resends_seen = 0;
+  bool first_frame_logged = false;
+  // Set by the capture thread when the session delivered a frame: the control
+  // thread then resets its backoff.
+  std::atomic<bool> delivered{false};
+};
+
+AravisSource::AravisSource(AravisOptions options) : options_(std::move(options)) {
+  if (options_.frame_rate_hz && *options_.frame_rate_hz > 0.0 &&
+      options_.frame_timeout.count() < 2000.0 / *options_.frame_rate_hz) {
+    Log(options_.device,
+        "frame_timeout %lld ms is less than two frame periods at %.1f Hz: "
+        "the connection will be reopened again and again",
+        static_cast<long long>(options_.frame_timeout.count()), *options_.frame_rate_hz);
+  }
+  to_release_.reserve(4);
+  releaser_ = std::thread([this] { ReleaseLoop(); });
+  control_ = std::thread([this] { ControlLoop(); });
+}
+
+AravisSource::~AravisSource() {
+  Stop();
+  if (control_.joinable()) control_.join();
+  // The control thread has ended and Next() is not running: whichever of the
+  // handoff places holds the session, it is released now.
+  Session* sessions[] = {active_, offered_.exchange(nullptr), returned_.exchange(nullptr)};
+  active_ = nullptr;
+  for (Session* s : sessions) {
+    if (s != nullptr) Retire(s);
+  }
+  {
+    std::lock_guard<std::mutex> lock(release_mutex_);
+    release_done_ = true;
+  }
+  release_wake_.notify_all();
+  if (releaser_.joinable()) releaser_.join();
+}
+
+void AravisSource::Retire(Session* session) {
+  {
+    std::lock_guard<std::mutex> lock(release_mutex_);
+    to_release_.push_back(session);
+  }
+  release_wake_.notify_all();
+}
+
+void AravisSource::ReleaseLoop() {
+  std::unique_lock<std::mutex> lock(release_mutex_);
+  for (;;) {
+    release_wake_.wait(lock, [this] { return !to_release_.empty() || release_done_; });
+    if (to_release_.empty()) return;
+    Session* session = to_release_.back();
+    to_release_.pop_back();
+    lock.unlock();
+    Release(session);
+    lock.lock();
+  }
+}
+
+void AravisSource::Stop() {
+  stopped_.store(true);
+  std::lock_guard<std::mutex> lock(control_mutex_);
+  control_wake_.notify_all();
+}
+
+AravisSource::Stats AravisSource::stats() const {
+  Stats s;
+  s.completed = completed_.load(std::memory_order_relaxed);
+  s.failed = failed_.load(std::memory_order_relaxed);
+  s.underruns = underruns_.load(std::memory_order_relaxed);
+  s.resends = resends_.load(std::memory_order_relaxed);
+  const std::uint64_t connections = connections_.load(std::memory_order_relaxed);
+  s.reconnects = connections > 0 ? connections - 1 : 0;
+  s.connected = connected_.load(std::memory_order_relaxed);
+  return s;
+}
+
+AravisSource::Session* AravisSource::Connect(std::string* error) {
+  GError* e = nullptr;
+  auto session = std::make_unique<Session>();
+  {
+    std::lock_guard<std::mutex> lock(AravisSystemMutex());
+    std::string id;
+    if (!ResolveDeviceId(options_.device, &id, error)) return nullptr;
+    session->camera = arv_camera_new(id.c_str(), &e);
+    if (session->camera == nullptr) {
+      if (!TakeError(&e, error, "open")) *error = "open: no camera";
+      return nullptr;
+    }
+  }
+  ArvCamera* camera = session->camera;
+  // From here on a failure releases what was opened.
+  auto fail = [&](const char* what) {
+    TakeError(&e, error, what);
+    Retire(session.release());
+    return nullptr;
+  };
+  const bool gv = arv_camera_is_gv_device(camera);
+
+  if (gv) {
+    if (options_.packet_size) {
+      arv_camera_gv_set_packet_size(camera, *options_.packet_size, &e);
+      if (e != nullptr) return fail("packet size");
+    } else {
+      // Negotiation finds the largest packet the path carries (jumbo frames
+      // where the network allows them); a camera that cannot test packets
+      // keeps its own size, which works, only slower.
+      arv_camera_gv_auto_packet_size(camera, &e);
+      g_clear_error(&e);
+    }
+  }
+  arv_camera_set_pixel_format(camera, ToArv(options_.pixel_format), &e);
+  if (e != nullptr) return fail("pixel format");
+  // Full sensor: the calibration holds for the whole image, so no binning,
+  // region of interest or offset may be left over from another application.
+  if (arv_camera_is_binning_available(camera, nullptr)) {
+    arv_camera_set_binning(camera, 1, 1, &e);
+    if (e != nullptr) return fail("binning");
+  }
+  gint sensor_w = 0;
+  gint sensor_h = 0;
+  arv_camera_get_sensor_size(camera, &sensor_w, &sensor_h, &e);
+  if (e != nullptr) return fail("sensor size");
+  arv_camera_set_region(camera, 0, 0, sensor_w, sensor_h, &e);
+  if (e != nullptr) return fail("region");
+  gint x = 0;
+  gint y = 0;
+  arv_camera_get_region(camera, &x, &y, &session->width, &session->height, &e);
+  if (e != nullptr) return fail("region");
+  if ((options_.width > 0 && session->width != options_.width) ||
+      (options_.height > 0 && session->height != options_.height)) {
+    *error = "the camera's image is " + std::to_string(session->width) + "x" +
+             std::to_string(session->height) + ", the calibration's " +
+             std::to_string(options_.width) + "x" + std::to_string(options_.height);
+    Retire(session.release());
+    return nullptr;
+  }
+  if (options_.exposure_us) {
+    if (arv_camera_is_exposure_auto_available(camera, nullptr)) {
+      arv_camera_set_exposure_time_auto(camera, ARV_AUTO_OFF, &e);
+      if (e != nullptr) return fail("exposure auto off");
+    }
+    arv_camera_set_exposure_time(camera, *options_.exposure_us, &e);
+    if (e != nullptr) return fail("exposure");
+  }
+  if (options_.gain_db) {
+    if (arv_camera_is_gain_auto_available(camera, nullptr)) {
+      arv_camera_set_gain_auto(camera, ARV_AUTO_OFF, &e);
+      if (e != nullptr) return fail("gain auto off");
+    }
+    arv_camera_set_gain(camera, *options_.gain_db, &e);
+    if (e != nullptr) return fail("gain");
+  }
+  const double exposure_us = arv_camera_get_exposure_time(camera, &e);
+  g_clear_error(&e);
+  if (exposure_us > 0.0) session->exposure_ns = static_cast<std::int64_t>(exposure_us * 1e3);
+
+  switch (options_.trigger) {
+    case AravisOptions::Trigger::kFreeRun:
+      // A camera without trigger features free-runs anyway.
+      arv_camera_clear_triggers(camera, &e);
+      g_clear_error(&e);
+      if (options_.frame_rate_hz) {
+        arv_camera_set_frame_rate(camera, *options_.frame_rate_hz, &e);
+        if (e != nullptr) return fail("frame rate");
+      }
+      break;
+    case AravisOptions::Trigger::kSoftware: {
+      double rate = options_.frame_rate_hz.value_or(0.0);
+      if (!(rate > 0.0)) {
+        rate = arv_camera_get_frame_rate(camera, &e);
+        g_clear_error(&e);
+      }
+      session->trigger_period_s = 1.0 / (rate > 0.0 ? rate : 30.0);
+      arv_camera_set_trigger(camera, "Software", &e);
+      if (e != nullptr) return fail("software trigger");
+      break;
+    }
+    case AravisOptions::Trigger::kHardware:
+      arv_camera_set_trigger(camera, "Line0", &e);
+      if (e != nullptr) return fail("hardware trigger (Line0)");
+      break;
+  }
+  arv_camera_set_acquisition_mode(camera, ARV_ACQUISITION_MODE_CONTINUOUS, &e);
+  if (e != nullptr) return fail("acquisition mode");
+
+  const guint payload = arv_camera_get_payload(camera, &e);
+  if (e != nullptr) return fail("payload size");
+  session->stream = arv_camera_create_stream(camera, nullptr, nullptr, &e);
+  if (session->stream == nullptr) {
+    if (e == nullptr) *error = "stream: not created";
+    return fail("stream");
+  }
+  if (ARV_IS_GV_STREAM(session->stream) && options_.socket_buffer_bytes) {
+    g_object_set(session->stream, "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED,
+                 "socket-buffer-size", static_cast<gint>(*options_.socket_buffer_bytes), nullptr);
+  }
+  for (int i = 0; i < std::max(options_.buffers, 1); ++i) {
+    arv_stream_push_buffer(session->stream, arv_buffer_new_allocate(payload));
+  }
+  arv_camera_start_acquisition(camera, &e);
+  if (e != nullptr) return fail("start acquisition");
+
+  const char* model = arv_camera_get_model_name(camera, nullptr);
+  const char* serial = arv_camera_get_device_serial_number(camera, nullptr);
+  Log(options_.device, "streaming from %s %s: %dx%d, exposure %.0f us, payload %u bytes%s",
+      model != nullptr ? model : "?", serial != nullptr ? serial : "?", session->width,
+      session->height, exposure_us, payload, gv ? "" : " (not GigE)");
+  return session.release();
+}
+
+void AravisSource::Release(Session* session) {
+  if (session->camera != nullptr && session->stream != nullptr) {
+    // A dead camera answers nothing; the command times out and the release
+    // goes on regardless.
+    GError* e = nullptr;
+    arv_camera_stop_acquisition(session->camera, &e);
+    g_clear_error(&e);
+  }
+  if (session->stream != nullptr) g_object_unref(session->stream);
+  if (session->camera != nullptr) g_object_unref(session->camera);
+  delete session;
+}
+
+void AravisSource::ControlLoop() {
+  Session* current = nullptr;  // Offered, streamed from, or being returned.
+  milliseconds backoff = kMinBackoff;
+  Clock::time_point next_attempt = Clock::now();
+  Clock::time_point next_trigger;
+  std::string last_error;
+  Clock::time_point last_error_log;
+  bool was_lost = false;
+  while (!stopped_.load()) {
+    Clock::time_point now = Clock::now();
+    if (Session* back = returned_.exchange(nullptr)) {
+      Log(options_.device, "no complete frame for %lld ms: connection lost, reopening",
+          static_cast<long long>(options_.frame_timeout.count()));
+      Retire(back);
+      current = nullptr;
+      was_lost = true;
+      now = Clock::now();
+      next_attempt = now + backoff;
+    }
+    if (current != nullptr && current->delivered.load()) backoff = kMinBackoff;
+
+    if (current == nullptr && now >= next_attempt) {
+      std::string error;
+      current = Connect(&error);
+      now = Clock::now();
+      if (current != nullptr) {
+        if (connections_.fetch_add(1) > 0 || was_lost) {
+          Log(options_.device, "reconnected");
+        }
+        last_error.clear();
+        connected_.store(true);
+        next_trigger = now;
+        offered_.store(current, std::memory_order_release);
+      } else {
+        if (error != last_error || now - last_error_log >= kRepeatLog) {
+          Log(options_.device, "cannot open (retrying, backoff up to %lld ms): %s",
+              static_cast<long long>(kMaxBackoff.count()), error.c_str());
+          last_error = error;
+          last_error_log = now;
+        }
+        next_attempt = now + backoff;
+        backoff = std::min(backoff * 2, kMaxBackoff);
+      }
+    }
+
+    if (current != nullptr && current->trigger_period_s > 0.0 && now >= next_trigger) {
+      GError* e = nullptr;
+      arv_camera_software_trigger(current->camera, &e);
+      g_clear_error(&e);  // A dead camera shows as missing frames.
+      const auto period = std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(current->trigger_period_s));
+      next_trigger += period;
+      if (next_trigger <= Clock::now()) next_trigger = Clock::now() + period;
+    }
+
+    Clock::time_point wake = now + std::chrono::seconds(1);
+    if (current == nullptr) wake = next_attempt;
+    if (current != nullptr && current->trigger_period_s > 0.0) wake = next_trigger;
+    std::unique_lock<std::mutex> lock(control_mutex_);
+    control_wake_.wait_until(lock, wake, [this] {
+      return stopped_.load() || returned_.load(std::memory_order_relaxed) != nullptr;
+    });
+  }
+}
+
+void AravisSource::SampleStreamStats(Session* session) {
+  guint64 completed = 0;
+  guint64 failures = 0;
+  guint64 underruns = 0;
+  arv_stream_get_statistics(session->stream, &completed, &failures, &underruns);
+  if (underruns > session->underruns_seen) {
+    underruns_.fetch_add(underruns - session->underruns_seen, std::memory_order_relaxed);
+    session->underruns_seen = underruns;
+  }
+  if (ARV_IS_GV_STREAM(session->stream)) {
+    guint64 resent = 0;
+    guint64 missing = 0;
+    arv_gv_stream_get_statistics(ARV_GV_STREAM(session->stream), &resent, &missing);
+    if (resent > session->resends_seen) {
+      resends_.fetch_add(resent - session->resends_seen, std::memory_order_relaxed);
+      session->resends_seen = resent;
+    }
+  }
+}
+
+bool AravisSource::Next(Frame* frame, milliseconds timeout) {
+  const Clock::time_point give_up = Clock::now() + timeout;
+  bool popped = false;  // A zero timeout still takes a frame that is waiting.
+  for (;;) {
+    if (stopped_.load()) return false;
+    Clock::time_point now = Clock::now();
+    if (active_ == nullptr) {
+      active_ = offered_.exchange(nullptr, std::memory_order_acquire);
+      if (active_ == nullptr) {
+        if (now >= give_up) return false;
+        std::this_thread::sleep_until(std::min(give_up, now + milliseconds(10)));
+        continue;
+      }
+      last_good_ = now;
+    }
+    const Clock::time_point lost_at = last_good_ + options_.frame_timeout;
+    if (now >= lost_at) {
+      // The watchdog: hand the camera to the control thread for release and
+      // reopening. The lock only orders the wake-up; it is taken once per loss.
+      connected_.store(false);
+      returned_.store(active_, std::memory_order_release);
+      active_ = nullptr;
+      {
+        std::lock_guard<std::mutex> lock(control_mutex_);
+        control_wake_.notify_all();
+      }
+      return false;
+    }
+    if (popped && now >= give_up) return false;
+
+    const Clock::time_point wake = std::min({give_up, lost_at, now + kPollSlice});
+    const auto wait_us = std::chrono::duration_cast<std::chrono::microseconds>(wake - now).count();
+    popped = true;
+    ArvBuffer* buffer =
+        wait_us > 0 ? arv_stream_timeout_pop_buffer(active_->stream, static_cast<guint64>(wait_us))
+                    : arv_stream_try_pop_buffer(active_->stream);
+    if (buffer == nullptr) continue;
+
+    // The newest complete buffer wins; older ones waiting behind a slow
+    // reader would only add latency.
+    ArvBuffer* newest = nullptr;
+    for (ArvBuffer* b = buffer; b != nullptr; b = arv_stream_try_pop_buffer(active_->stream)) {
+      if (arv_buffer_get_status(b) == ARV_BUFFER_STATUS_SUCCESS) {
+        if (newest != nullptr) arv_stream_push_buffer(active_->stream, newest);
+        newest = b;
+      } else {
+        failed_.fetch_add(1, std::memory_order_relaxed);
+        arv_stream_push_buffer(active_->stream, b);
+      }
+    }
+    SampleStreamStats(active_);
+    if (newest == nullptr) continue;
+
+    const bool ok = ConvertBuffer(newest, options_, frame);
+    if (ok) {
+      const guint64 system_ns = arv_buffer_get_system_timestamp(newest);
+      const std::int64_t arrival_ns =
+          system_ns != 0 ? static_cast<std::int64_t>(system_ns) : RealtimeNowNs();
+      // The image shows the scene during the exposure, which ended before
+      // the frame arrived: stamping no later than that keeps the pipeline's
+      // capture-skew dilation large enough.
+      frame->stamp_ns = arrival_ns - active_->exposure_ns;
+      frame->index = index_++;
+      if (!active_->first_frame_logged) {
+        active_->first_frame_logged = true;
+        Log(options_.device, "first frame: device timestamp %llu ns, host %lld ns",
+            static_cast<unsigned long long>(arv_buffer_get_timestamp(newest)),
+            static_cast<long long>(arrival_ns));
+      }
+    }
+    arv_stream_push_buffer(active_->stream, newest);
+    if (!ok) {
+      failed_.fetch_add(1, std::memory_order_relaxed);
+      continue;
+    }
+    completed_.fetch_add(1, std::memory_order_relaxed);
+    last_good_ = Clock::now();
+    if (!active_->delivered.load(std::memory_order_relaxed)) active_->delivered.store(true);
+    return true;
+  }
+}
+
+}  // namespace hg::capture

@@ -1,0 +1,396 @@
+// The `aravis` source against real GigE Vision implementations on 127.0.0.1:
+// Aravis' fake camera inside the test process (serving known images through a
+// fill callback) and the arv-fake-gv-camera-0.8 program as a child process
+// (killed and restarted). Run through tests/publish/in_netns.sh: a private
+// network namespace with only loopback, where broadcast discovery on lo finds
+// the fake cameras and nothing leaves the machine.
+#include <arv.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <cstdlib>
+#include <new>
+#include <optional>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "capture/aravis_source.h"
+
+// Counts operator new on threads that ask for it (the capture thread of a
+// test): Aravis' and the fake camera's own threads allocate as they please.
+namespace {
+thread_local bool t_counting = false;
+std::atomic<long> g_allocations{0};
+}  // namespace
+
+void* operator new(std::size_t size) {
+  if (t_counting) g_allocations.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace hg::capture {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+using std::chrono::milliseconds;
+using Pixel = AravisOptions::Pixel;
+
+constexpr int kSensor = 2048;  // The fake camera's sensor is 2048 x 2048.
+
+// Colours of the Bayer mosaic the fake camera serves: every red site holds
+// kRed, and so on, so a correct demosaic gives exactly this colour inside.
+constexpr std::uint8_t kRed = 200;
+constexpr std::uint8_t kGreen = 100;
+constexpr std::uint8_t kBlue = 50;
+
+std::int64_t RealtimeNowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+// Mono8 value (and red of RGB8) of pixel (u, v) in the frame with offset k.
+std::uint8_t Ramp(int u, int v, int k) { return static_cast<std::uint8_t>(u + 3 * v + k); }
+
+// Aravis' fake GigE Vision camera, in this process, on 127.0.0.1.
+class InProcessCamera {
+ public:
+  explicit InProcessCamera(const char* serial)
+      : camera_(arv_gv_fake_camera_new("127.0.0.1", serial)) {
+    fake_ = arv_gv_fake_camera_get_fake_camera(camera_);
+    arv_fake_camera_set_fill_pattern(fake_, &InProcessCamera::Fill, this);
+  }
+  ~InProcessCamera() { g_object_unref(camera_); }
+  InProcessCamera(const InProcessCamera&) = delete;
+  InProcessCamera& operator=(const InProcessCamera&) = delete;
+
+  [[nodiscard]] bool running() const { return arv_gv_fake_camera_is_running(camera_); }
+  [[nodiscard]] ArvFakeCamera* fake() const { return fake_; }
+
+ private:
+  // Runs on the fake camera's stream thread for every frame it sends. The
+  // buffer was allocated for the full payload, and the fake camera has set
+  // the image's width, height and pixel format.
+  static void Fill(ArvBuffer* buffer, void* self, guint32 /*exposure_us*/, guint32 /*gain*/,
+                   ArvPixelFormat format) {
+    auto* camera = static_cast<InProcessCamera*>(self);
+    const int k = camera->frames_.fetch_add(1);
+    const int w = arv_buffer_get_image_width(buffer);
+    const int h = arv_buffer_get_image_height(buffer);
+    auto* data =
+        static_cast<std::uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
+    // Site colours of the 2x2 Bayer block at the origin, row-major.
+    auto block = [](ArvPixelFormat f) -> std::array<std::uint8_t, 4> {
+      if (f == ARV_PIXEL_FORMAT_BAYER_RG_8) return {kRed, kGreen, kGreen, kBlue};
+      if (f == ARV_PIXEL_FORMAT_BAYER_GB_8) return {kGreen, kBlue, kRed, kGreen};
+      if (f == ARV_PIXEL_FORMAT_BAYER_GR_8) return {kGreen, kRed, kBlue, kGreen};
+      return {kBlue, kGreen, kGreen, kRed};  // BayerBG8
+    };
+    for (int v = 0; v < h; ++v) {
+      for (int u = 0; u < w; ++u) {
+        const std::size_t i = static_cast<std::size_t>(v) * w + u;
+        if (format == ARV_PIXEL_FORMAT_MONO_8) {
+          data[i] = Ramp(u, v, k);
+        } else if (format == ARV_PIXEL_FORMAT_RGB_8_PACKED) {
+          data[3 * i] = Ramp(u, v, k);
+          data[3 * i + 1] = static_cast<std::uint8_t>(255 - Ramp(u, v, k));
+          data[3 * i + 2] = 77;
+        } else {
+          data[i] = block(format)[(v % 2) * 2 + (u % 2)];
+        }
+      }
+    }
+  }
+
+  ArvGvFakeCamera* camera_;
+  ArvFakeCamera* fake_;
+  std::atomic<int> frames_{0};
+};
+
+// arv-fake-gv-camera-0.8 as a child process.
+class CameraProcess {
+ public:
+  explicit CameraProcess(const char* serial) {
+    pid_ = fork();
+    if (pid_ == 0) {
+      execl(HG_ARV_FAKE_GV_CAMERA, HG_ARV_FAKE_GV_CAMERA, "-i", "127.0.0.1", "-s", serial,
+            static_cast<char*>(nullptr));
+      _exit(127);
+    }
+  }
+  ~CameraProcess() { Kill(); }
+  CameraProcess(const CameraProcess&) = delete;
+  CameraProcess& operator=(const CameraProcess&) = delete;
+
+  [[nodiscard]] bool started() const { return pid_ > 0; }
+  // SIGKILL: the camera vanishes as with a pulled cable, without a goodbye.
+  void Kill() {
+    if (pid_ <= 0) return;
+    kill(pid_, SIGKILL);
+    waitpid(pid_, nullptr, 0);
+    pid_ = -1;
+  }
+
+ private:
+  pid_t pid_ = -1;
+};
+
+// Calls Next() until it delivers a frame or `limit` passes.
+bool NextWithin(AravisSource* source, Frame* frame, milliseconds limit) {
+  const Clock::time_point end = Clock::now() + limit;
+  while (Clock::now() < end) {
+    if (source->Next(frame, milliseconds(50))) return true;
+  }
+  return false;
+}
+
+AravisOptions FakeOptions(const std::string& device, Pixel pixel) {
+  AravisOptions o;
+  o.device = device;
+  o.pixel_format = pixel;
+  o.frame_rate_hz = 10.0;
+  o.width = kSensor;
+  o.height = kSensor;
+  // Generous for a loaded machine: a 12 MB RGB8 frame through loopback
+  // takes a while. The watchdog tests set their own.
+  o.frame_timeout = milliseconds(1000);
+  return o;
+}
+
+TEST(AravisSourceTest, DeliversKnownMonoImagesWithIncreasingStamps) {
+  InProcessCamera camera("HGMONO");
+  ASSERT_TRUE(camera.running()) << "cannot serve a fake camera on 127.0.0.1:3956";
+  // Selected by serial number: found by broadcast discovery on lo.
+  AravisOptions options = FakeOptions("HGMONO", Pixel::kMono8);
+  options.socket_buffer_bytes = 8 << 20;
+  options.packet_size = 8000;  // Loopback's MTU is 64 KiB: "jumbo" packets pass.
+  AravisSource source(options);
+  Frame frame;
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
+  std::int64_t last_stamp = 0;
+  int last_offset = -1;
+  std::uint64_t last_index = 0;
+  long allocations = 0;
+  for (int n = 0; n < 6; ++n) {
+    if (n > 0) {
+      t_counting = n >= 2;  // Steady state: the frame's buffers exist.
+      const long before = g_allocations.load();
+      const bool got = NextWithin(&source, &frame, milliseconds(5000));
+      allocations += g_allocations.load() - before;
+      t_counting = false;
+      ASSERT_TRUE(got) << "frame " << n;
+    }
+    ASSERT_EQ(frame.kind, FrameKind::kMono);
+    ASSERT_EQ(frame.grey.width, kSensor);
+    ASSERT_EQ(frame.grey.height, kSensor);
+    ASSERT_EQ(frame.grey.pixels.size(), std::size_t{kSensor} * kSensor);
+    const int k = frame.grey.At(0, 0);
+    int wrong = 0;
+    for (int v = 0; v < kSensor; ++v) {
+      for (int u = 0; u < kSensor; ++u) wrong += frame.grey.At(u, v) != Ramp(u, v, k);
+    }
+    EXPECT_EQ(wrong, 0) << "frame " << n;
+    // Frames follow each other (newest wins, so some may be skipped).
+    EXPECT_GT(k, last_offset);
+    EXPECT_GT(frame.stamp_ns, last_stamp);
+    // Stamped before it was delivered (at or before the end of exposure).
+    EXPECT_LE(frame.stamp_ns, RealtimeNowNs());
+    if (n > 0) {
+      EXPECT_GT(frame.index, last_index);
+    }
+    last_offset = k;
+    last_stamp = frame.stamp_ns;
+    last_index = frame.index;
+  }
+  EXPECT_EQ(allocations, 0) << "Next() allocated in steady state";
+  const AravisSource::Stats stats = source.stats();
+  EXPECT_TRUE(stats.connected);
+  EXPECT_GE(stats.completed, 6u);
+  EXPECT_EQ(stats.reconnects, 0u);
+}
+
+TEST(AravisSourceTest, ConvertsRgbAndEveryBayerPattern) {
+  InProcessCamera camera("HGCOLOUR");
+  ASSERT_TRUE(camera.running());
+  std::mt19937_64 rng(20240611);
+  std::uniform_int_distribution<int> coord(2, kSensor - 3);  // Demosaic borders aside.
+  for (const Pixel pixel :
+       {Pixel::kRGB8, Pixel::kBayerRG8, Pixel::kBayerGB8, Pixel::kBayerGR8, Pixel::kBayerBG8}) {
+    SCOPED_TRACE(static_cast<int>(pixel));
+    // Opened by address: no discovery needed.
+    AravisSource source(FakeOptions("127.0.0.1", pixel));
+    Frame frame;
+    // The first frame may still have been filled in the previous format.
+    ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
+    long allocations = 0;
+    for (int n = 0; n < 3; ++n) {
+      t_counting = n > 0;
+      const long before = g_allocations.load();
+      const bool got = NextWithin(&source, &frame, milliseconds(5000));
+      allocations += g_allocations.load() - before;
+      t_counting = false;
+      ASSERT_TRUE(got);
+      ASSERT_EQ(frame.kind, FrameKind::kRgb);
+      ASSERT_EQ(frame.rgb.width, kSensor);
+      ASSERT_EQ(frame.rgb.height, kSensor);
+      const int k = frame.rgb.Pixel(0, 0)[0];
+      int wrong = 0;
+      for (int s = 0; s < 5000; ++s) {
+        const int u = coord(rng);
+        const int v = coord(rng);
+        const std::uint8_t* p = frame.rgb.Pixel(u, v);
+        if (pixel == Pixel::kRGB8) {
+          const std::uint8_t r = Ramp(u, v, k);
+          wrong += p[0] != r || p[1] != 255 - r || p[2] != 77;
+        } else {
+          wrong += p[0] != kRed || p[1] != kGreen || p[2] != kBlue;
+        }
+      }
+      EXPECT_EQ(wrong, 0) << "frame " << n;
+    }
+    EXPECT_EQ(allocations, 0) << "Next() allocated in steady state";
+  }
+}
+
+TEST(AravisSourceTest, WrongSizeFramesAreCorruptAndTheSourceRecovers) {
+  InProcessCamera camera("HGSIZE");
+  ASSERT_TRUE(camera.running());
+  AravisOptions options = FakeOptions("127.0.0.1", Pixel::kMono8);
+  options.frame_timeout = milliseconds(300);
+  AravisSource source(options);
+  Frame frame;
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
+  ASSERT_EQ(source.corrupt_frames(), 0u);
+  // Another application narrows the image behind the source's back.
+  ASSERT_TRUE(arv_fake_camera_write_register(camera.fake(), ARV_FAKE_CAMERA_REGISTER_WIDTH, 1024));
+  // Frames of 1024 x 2048 are refused; with no good frame the watchdog calls
+  // the connection lost, and reopening sets the full sensor again.
+  const Clock::time_point end = Clock::now() + std::chrono::seconds(20);
+  bool recovered = false;
+  while (Clock::now() < end && !recovered) {
+    if (source.Next(&frame, milliseconds(50))) {
+      ASSERT_EQ(frame.grey.width, kSensor);  // Never a frame of the wrong size.
+      recovered = source.stats().reconnects > 0;
+    }
+  }
+  EXPECT_TRUE(recovered);
+  EXPECT_GT(source.corrupt_frames(), 0u);
+  EXPECT_EQ(source.stats().failed, source.corrupt_frames());
+  EXPECT_TRUE(source.stats().connected);
+}
+
+TEST(AravisSourceTest, SoftwareTriggerDrivesTheCamera) {
+  InProcessCamera camera("HGTRIG");
+  ASSERT_TRUE(camera.running());
+  AravisOptions options = FakeOptions("127.0.0.1", Pixel::kMono8);
+  options.trigger = AravisOptions::Trigger::kSoftware;
+  options.frame_rate_hz = 8.0;
+  AravisSource source(options);
+  Frame frame;
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
+  // In software trigger mode the fake camera sends a frame only per trigger:
+  // frames keep coming because the source triggers.
+  EXPECT_TRUE(arv_fake_camera_is_in_software_trigger_mode(camera.fake()));
+  for (int n = 0; n < 4; ++n) ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(5000)));
+  EXPECT_TRUE(source.stats().connected);
+}
+
+TEST(AravisSourceTest, AbsentCameraIsNoErrorAndARestartedCameraIsReconnected) {
+  if (access(HG_ARV_FAKE_GV_CAMERA, X_OK) != 0) GTEST_SKIP() << "no arv-fake-gv-camera-0.8";
+  AravisOptions options = FakeOptions("127.0.0.1", Pixel::kMono8);
+  // Long enough that a 4 MB frame gets through a loaded two-core machine
+  // (200 ms made the source reconnect in a loop there), short enough to show
+  // that the loss is noticed long before Aravis' heartbeat would.
+  options.frame_timeout = milliseconds(1000);
+  // Declared first so that the source (destroyed first) releases a live
+  // camera: releasing a dead one waits for Aravis' command timeouts.
+  std::optional<CameraProcess> camera;
+  // No camera yet: construction does not throw and Next() times out.
+  AravisSource source(options);
+  Frame frame;
+  const Clock::time_point before = Clock::now();
+  EXPECT_FALSE(source.Next(&frame, milliseconds(50)));
+  EXPECT_LT(Clock::now() - before, milliseconds(1000));  // Not blocked by the opening.
+  EXPECT_FALSE(source.stats().connected);
+
+  camera.emplace("HGPROC");
+  ASSERT_TRUE(camera->started());
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(20000)));
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(5000)));
+  EXPECT_TRUE(source.stats().connected);
+  EXPECT_EQ(frame.grey.width, kSensor);
+
+  // The camera dies: no frame, and the source says so within the frame
+  // timeout (plus a margin for a loaded machine), long before Aravis' own
+  // heartbeat would notice.
+  camera->Kill();
+  const Clock::time_point killed = Clock::now();
+  Clock::duration noticed = std::chrono::seconds(100);
+  int frames_after_kill = 0;
+  while (Clock::now() - killed < std::chrono::seconds(5)) {
+    // Frames already on their way may still arrive right after the kill.
+    if (source.Next(&frame, milliseconds(50))) ++frames_after_kill;
+    if (!source.stats().connected) {
+      noticed = Clock::now() - killed;
+      break;
+    }
+  }
+  EXPECT_LE(frames_after_kill, 2);
+  EXPECT_LT(noticed, options.frame_timeout + milliseconds(1000));
+  EXPECT_FALSE(source.Next(&frame, milliseconds(50)));
+
+  // The camera comes back: the source reopens it by itself.
+  camera.reset();
+  camera.emplace("HGPROC");
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(30000)));
+  for (int n = 0; n < 3; ++n) ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(5000)));
+  const AravisSource::Stats stats = source.stats();
+  EXPECT_TRUE(stats.connected);
+  EXPECT_GE(stats.reconnects, 1u);
+  EXPECT_EQ(frame.grey.width, kSensor);
+}
+
+TEST(AravisSourceTest, ACameraOfAnotherSizeThanCalibratedIsNotUsed) {
+  InProcessCamera camera("HGOTHER");
+  ASSERT_TRUE(camera.running());
+  // Calibrated at 1920 x 1080, but the sensor is 2048 x 2048: the camera is
+  // refused when opened (it sees nothing) instead of streaming images the
+  // calibration does not describe.
+  AravisOptions options = FakeOptions("127.0.0.1", Pixel::kMono8);
+  options.width = 1920;
+  options.height = 1080;
+  AravisSource source(options);
+  Frame frame;
+  EXPECT_FALSE(NextWithin(&source, &frame, milliseconds(1500)));
+  EXPECT_FALSE(source.stats().connected);
+  EXPECT_EQ(source.stats().completed, 0u);
+}
+
+TEST(AravisSourceTest, StopEndsAWaitingNext) {
+  AravisSource source(FakeOptions("127.0.0.1", Pixel::kMono8));  // No camera.
+  std::thread stopper([&] {
+    std::this_thread::sleep_for(milliseconds(100));
+    source.Stop();
+  });
+  Frame frame;
+  const Clock::time_point before = Clock::now();
+  EXPECT_FALSE(source.Next(&frame, std::chrono::seconds(30)));
+  EXPECT_LT(Clock::now() - before, std::chrono::seconds(10));
+  stopper.join();
+  EXPECT_FALSE(source.Next(&frame, milliseconds(10)));
+}
+
+}  // namespace
+}  // namespace hg::capture
