@@ -17,6 +17,9 @@
 #include <yaml-cpp/yaml.h>
 
 #include "app/config_doc.h"
+#include "app/pipeline_setup.h"
+#include "app/tracking_stage.h"
+#include "capture/recording.h"
 #include "common/config_error.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
@@ -245,7 +248,8 @@ const Field<SimSourceConfig> kSimFields[] = {
 const Field<ReplaySourceConfig> kReplayFields[] = {
     {.key = "directory",
      .member = &ReplaySourceConfig::directory,
-     .meaning = "Recording folder, relative to the config file.",
+     .meaning = "Recording folder (`hullguard record`, black box or `hullguard synth`), relative "
+                "to the config file.",
      .required = true,
      .path = PathCheck::kDirectory},
     {.key = "camera",
@@ -254,7 +258,9 @@ const Field<ReplaySourceConfig> kReplayFields[] = {
      .default_doc = "the camera's name"},
     {.key = "realtime",
      .member = &ReplaySourceConfig::realtime,
-     .meaning = "Pace frames by their timestamps; false plays them as fast as they are consumed."},
+     .meaning = "Play frames at their recorded capture times; false delivers every frame as soon "
+                "as the capture thread asks, stamped on delivery (load tests; `hullguard replay` "
+                "is the deterministic fast replay)."},
 };
 
 const Field<AravisSourceConfig> kAravisFields[] = {
@@ -385,6 +391,100 @@ const Field<LoggingConfig> kLoggingFields[] = {
      .meaning = "Log to the systemd journal instead of stderr."},
 };
 
+const Field<TrackingConfig> kTrackingFields[] = {
+    {.key = "enabled",
+     .member = &TrackingConfig::enabled,
+     .meaning = "Track people on the occupancy and publish `<prefix>/tracks`. Tracking runs in "
+                "its own thread on the newest snapshot and never delays the occupancy."},
+    {.key = "voxel_m",
+     .member = &TrackingConfig::voxel_m,
+     .meaning = "Edge of the tracking voxels (m) over cell.bounds: 22 bytes per voxel, at most "
+                "50 million voxels.",
+     .limits = {0.01, 1}},
+    {.key = "particles",
+     .member = &TrackingConfig::particles,
+     .meaning = "Particles per track (each an ellipsoid); the cost of a cycle grows with it.",
+     .limits = {1, 100'000}},
+    {.key = "max_tracks",
+     .member = &TrackingConfig::max_tracks,
+     .meaning = "Tracks held at most (their filters are allocated at start-up); more people get "
+                "no track, their space stays occupied.",
+     .limits = {1, 1024}},
+    {.key = "rho_unknown",
+     .member = &TrackingConfig::rho_unknown,
+     .meaning = "Likelihood score (rho) of an occupied voxel inside a particle's ellipsoid: the "
+                "evidence of a person.",
+     .limits = {0, kInf, true}},
+    {.key = "sigma_occluded",
+     .member = &TrackingConfig::sigma_occluded,
+     .meaning = "Score (sigma) of a voxel no camera sees past the obstacles: a person may hide "
+                "there."},
+    {.key = "tau_known",
+     .member = &TrackingConfig::tau_known,
+     .meaning = "Score (tau) of a voxel inside an obstacle."},
+    {.key = "epsilon_free",
+     .member = &TrackingConfig::epsilon_free,
+     .meaning = "Score (epsilon) of a voxel seen empty."},
+    {.key = "below_floor_weight",
+     .member = &TrackingConfig::below_floor_weight,
+     .meaning = "Score of lattice positions below cell.bounds (taken as the floor); 0 when the "
+                "bounds start above the floor."},
+    {.key = "collision_radius_m",
+     .member = &TrackingConfig::collision_radius_m,
+     .meaning = "Radius of the capsule a particle sweeps from its previous centre; particles "
+                "whose capsule touches an obstacle are replaced. At most 0.2 (the smallest "
+                "horizontal half-axis of a person).",
+     .limits = {0, kInf}},
+    {.key = "birth_min_volume_m3",
+     .member = &TrackingConfig::birth_min_volume_m3,
+     .meaning = "A connected occupied component outside every track starts a track when at least "
+                "this large.",
+     .limits = {0, kInf, true}},
+    {.key = "death_timeout_s",
+     .member = &TrackingConfig::death_timeout_s,
+     .meaning = "A visible track dies after this long without occupied voxels in its ellipsoid.",
+     .limits = {0, kInf, true}},
+    {.key = "occluded_death_timeout_s",
+     .member = &TrackingConfig::occluded_death_timeout_s,
+     .meaning = "The same for a track mostly where no camera sees (a person under a table).",
+     .limits = {0, kInf, true}},
+    {.key = "reacquire_radius_m",
+     .member = &TrackingConfig::reacquire_radius_m,
+     .meaning = "A new component this near a track without support (plus reacquire_speed_mps "
+                "times its time without support) is taken as that person back: it keeps the id.",
+     .limits = {0, kInf}},
+    {.key = "reacquire_speed_mps",
+     .member = &TrackingConfig::reacquire_speed_mps,
+     .meaning = "Speed at which the re-acquisition radius grows while a track has no support.",
+     .limits = {0, kInf}},
+};
+
+const Field<BlackBoxConfig> kBlackBoxFields[] = {
+    {.key = "seconds",
+     .member = &BlackBoxConfig::seconds,
+     .meaning = "Seconds of every camera's frames kept in memory (a ring per camera, allocated "
+                "at start-up); 0 turns the black box off.",
+     .limits = {0, 3600}},
+    {.key = "dir",
+     .member = &BlackBoxConfig::dir,
+     .meaning = "Each dump is a recording (docs/cameras.md) in dir/<UTC time>/; relative to the "
+                "config file, created when missing."},
+    {.key = "on_degraded",
+     .member = &BlackBoxConfig::on_degraded,
+     .meaning = "Dump when the status turns from ok to degraded; SIGUSR1 always dumps."},
+    {.key = "max_memory_mb",
+     .member = &BlackBoxConfig::max_memory_mb,
+     .meaning = "Memory allowed (MiB) for the rings and the copy a dump makes of them (twice the "
+                "rings); a longer history is refused at load.",
+     .limits = {1, 100000}},
+    {.key = "camera_rate_hz",
+     .member = &BlackBoxConfig::camera_rate_hz,
+     .meaning = "Frame rate the rings are sized for where the config does not fix it (aravis and "
+                "v4l2 without frame_rate_hz; sim and replay use their scene's or recording's); a "
+                "faster camera keeps a shorter history.",
+     .limits = {0, 1000, true}},
+};
+
 /// Top-level keys.
 struct Section {
   const char* key;
@@ -403,6 +503,8 @@ const Section kSections[] = {
     {"obstacles", "list", false, "Static obstacle meshes."},
     {"dds", "map", false, "DDS publishing."},
     {"logging", "map", false, "Log level and destination."},
+    {"blackbox", "map", false, "Black-box recorder: the last seconds of every camera."},
+    {"tracking", "map", false, "Human tracking and its DDS topic."},
 };
 
 template <typename S>
@@ -439,6 +541,7 @@ class Reader {
 
   [[nodiscard]] const std::string& file() const { return file_; }
   [[nodiscard]] std::size_t error_count() const { return errors_.size(); }
+  [[nodiscard]] const fs::path& base_dir() const { return base_dir_; }
 
   void Error(int line, const std::string& path, const std::string& problem) {
     errors_.emplace_back(
@@ -727,6 +830,110 @@ void ReadSection(Reader& r, const Entries& root, const char* key, std::span<cons
   if (it == root.end()) return;
   const Entries e = r.Map(it->second, KeysOf(fields));
   r.Fields(fields, e, it->second, out);
+}
+
+/// Keys of the `tracking` section by the tracking::TrackerOptions path they set.
+constexpr std::pair<const char*, const char*> kTrackerOptionKeys[] = {
+    {"voxel_m", "voxel_m"},
+    {"filter.num_particles", "particles"},
+    {"max_tracks", "max_tracks"},
+    {"likelihood.unknown", "rho_unknown"},
+    {"likelihood.occluded", "sigma_occluded"},
+    {"likelihood.known", "tau_known"},
+    {"likelihood.free", "epsilon_free"},
+    {"likelihood.below_floor", "below_floor_weight"},
+    {"filter.collision_radius_m", "collision_radius_m"},
+    {"birth_min_volume_m3", "birth_min_volume_m3"},
+    {"death_timeout_s", "death_timeout_s"},
+    {"occluded_death_timeout_s", "occluded_death_timeout_s"},
+    {"reacquire_radius_m", "reacquire_radius_m"},
+    {"reacquire_speed_mps", "reacquire_speed_mps"},
+};
+
+/// Most voxels of the tracking grid (22 bytes each: about 1.1 GB).
+constexpr double kMaxTrackingVoxels = 50e6;
+
+/// Checks of the `tracking` section that involve more than one key, on values
+/// that were read: the tracker's own option checks (tracking::CheckOptions,
+/// each problem at the line of the key it names) and, when tracking is on, the
+/// size of its grid over the cell.
+void CheckTracking(Reader& r, const Entries& sections, const Config& config) {
+  int section_line = 0;
+  std::map<std::string, int> lines;  // Key -> line of the key.
+  if (const auto it = sections.find("tracking"); it != sections.end()) {
+    section_line = it->second.line;
+    if (it->second.value.IsMap()) {
+      for (const auto& kv : it->second.value) {
+        if (kv.first.IsScalar()) lines[kv.first.Scalar()] = common::YamlLine(kv.first);
+      }
+    }
+  }
+  auto line_of = [&](const std::string& key) {
+    const auto at = lines.find(key);
+    return at != lines.end() ? at->second : section_line;
+  };
+  const TrackingConfig& t = config.tracking;
+  for (const tracking::OptionProblem& p :
+       tracking::CheckOptions(MakeTrackerOptions(t, config.timing.rate_hz))) {
+    const char* key = nullptr;
+    for (const auto& [option, config_key] : kTrackerOptionKeys) {
+      if (p.key == option) key = config_key;
+    }
+    if (key != nullptr) {
+      r.Error(line_of(key), std::string("tracking.") + key, p.problem);
+    } else {
+      r.Error(section_line, "tracking", p.key + ": " + p.problem);
+    }
+  }
+  if (t.enabled && config.cell.bounds.IsValid()) {
+    const Eigen::Vector3d cells = (config.cell.bounds.Size() / t.voxel_m).array().ceil();
+    if (cells.prod() > kMaxTrackingVoxels) {
+      r.Error(line_of("voxel_m"), "tracking.voxel_m",
+              FormatNumber(t.voxel_m) + " m gives " + FormatNumber(cells.prod()) +
+                  " tracking voxels over cell.bounds; at most " + FormatNumber(kMaxTrackingVoxels) +
+                  " (a larger voxel_m, or enabled: false)");
+    }
+  }
+}
+
+/// The black box's memory: its rings, sized from every camera's frame size,
+/// kind and rate, plus a dump's copy of them must fit max_memory_mb.
+void CheckBlackBox(Reader& r, const Entries& sections, const Config& config) {
+  int line = 0;
+  if (const auto it = sections.find("blackbox"); it != sections.end()) {
+    line = it->second.line;
+    if (it->second.value.IsMap()) {
+      for (const auto& kv : it->second.value) {
+        if (kv.first.IsScalar() && kv.first.Scalar() == "seconds") {
+          line = common::YamlLine(kv.first);
+        }
+      }
+    }
+  }
+  const double seconds = config.blackbox.seconds;
+  auto mib = [seconds](const std::vector<pipeline::BlackBoxCamera>& cameras) {
+    return static_cast<double>(pipeline::BlackBoxBytes(cameras, seconds)) / (1024.0 * 1024.0);
+  };
+  try {
+    const std::vector<pipeline::BlackBoxCamera> cameras = BlackBoxCameras(config);
+    const double total = mib(cameras);
+    if (2.0 * total <= config.blackbox.max_memory_mb) return;
+    const pipeline::BlackBoxCamera* largest = &cameras.front();
+    for (const pipeline::BlackBoxCamera& c : cameras) {
+      if (mib({c}) > mib({*largest})) largest = &c;
+    }
+    const geometry::CameraModel& m = largest->model;
+    r.Error(line, "blackbox.seconds",
+            FormatNumber(seconds) + " s of every camera need " + FormatNumber(std::round(total)) +
+                " MiB of rings, twice that while a dump copies them, more than "
+                "blackbox.max_memory_mb = " +
+                std::to_string(config.blackbox.max_memory_mb) + " (largest: " + m.name + " " +
+                std::to_string(m.width) + "x" + std::to_string(m.height) + " " +
+                capture::ToString(largest->kind) + " at " + FormatNumber(largest->rate_hz) +
+                " Hz, " + FormatNumber(std::round(mib({*largest}))) + " MiB)");
+  } catch (const ConfigError& e) {
+    r.Error(line, "blackbox", std::string("cannot size the rings: ") + e.what());
+  }
 }
 
 /// Names of the cameras a scene file defines; nullopt (and an error) when it cannot be read.
@@ -1021,6 +1228,13 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   }
   ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);
   ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
+  ReadSection<BlackBoxConfig>(r, sections, "blackbox", kBlackBoxFields, &config.blackbox);
+  if (fs::path(config.blackbox.dir).is_relative()) {
+    config.blackbox.dir = (r.base_dir() / config.blackbox.dir).lexically_normal().string();
+  }
+  const std::size_t errors_before_tracking = r.error_count();
+  ReadSection<TrackingConfig>(r, sections, "tracking", kTrackingFields, &config.tracking);
+  if (r.error_count() == errors_before_tracking) CheckTracking(r, sections, config);
 
   // Cross-field: the deadline must leave room within one period (checked on
   // values that were read, not on a default standing in for a bad one).
@@ -1085,6 +1299,9 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
       config.obstacles.push_back(std::move(obstacle));
     }
   }
+
+  // The black box's rings are sized from the cameras: checked once they all read well.
+  if (config.blackbox.seconds > 0.0 && r.error_count() == 0) CheckBlackBox(r, sections, config);
 
   r.ThrowIfErrors();
   return config;
@@ -1166,6 +1383,17 @@ std::vector<DocSection> ConfigDocSections() {
                  Rows<ObstacleConfig>(kObstacleFields)});
   out.push_back({"dds", "dds", "DDS publishing.", Rows<DdsConfig>(kDdsFields)});
   out.push_back({"logging", "logging", "Logging.", Rows<LoggingConfig>(kLoggingFields)});
+  out.push_back({"blackbox", "blackbox",
+                 "The black box keeps the last `seconds` of every camera's frames in memory and "
+                 "writes them out as a recording on SIGUSR1 or when the status turns degraded "
+                 "(docs/cameras.md, \"Recording and replaying\").",
+                 Rows<BlackBoxConfig>(kBlackBoxFields)});
+  out.push_back({"tracking", "tracking",
+                 "Human tracking (Ober-Gecks et al.): one particle filter per person over the "
+                 "occupied voxels, births from occupied space no track explains, deaths after a "
+                 "time without support. Published as `<prefix>/tracks` (docs/dds.md); not a "
+                 "safety output, the occupancy is.",
+                 Rows<TrackingConfig>(kTrackingFields)});
   return out;
 }
 

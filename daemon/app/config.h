@@ -152,6 +152,38 @@ struct LoggingConfig {
   bool journald = false;  ///< Log to the systemd journal instead of stderr.
 };
 
+/// Human tracking on the occupancy (particle filters, tracking/tracker.h).
+/// The keys are a subset of tracking::TrackerOptions, with its defaults; the
+/// weights are the paper's rho, sigma, tau and epsilon.
+struct TrackingConfig {
+  bool enabled = true;
+  double voxel_m = 0.04;             ///< Edge of the tracking voxels.
+  int particles = 300;               ///< Particles per track.
+  int max_tracks = 16;               ///< Tracks held at most (preallocated).
+  double rho_unknown = 1.0;          ///< Likelihood score of an occupied voxel.
+  double sigma_occluded = 0.1;       ///< Of a voxel no camera sees.
+  double tau_known = -5.0;           ///< Of a voxel inside an obstacle.
+  double epsilon_free = -0.1;        ///< Of a voxel seen empty.
+  double below_floor_weight = -0.1;  ///< Of lattice positions below the cell's floor.
+  double collision_radius_m = 0.2;   ///< Capsule swept by a particle's move.
+  double birth_min_volume_m3 = 0.06;
+  double death_timeout_s = 1.0;
+  double occluded_death_timeout_s = 30.0;
+  double reacquire_radius_m = 0.5;
+  double reacquire_speed_mps = 1.5;
+};
+
+/// The black box: the last seconds of every camera kept in memory and written
+/// out as a recording when the status turns degraded or on SIGUSR1
+/// (docs/cameras.md, "Recording and replaying").
+struct BlackBoxConfig {
+  double seconds = 0.0;                             ///< History per camera; 0 = off.
+  std::string dir = "/var/lib/hullguard/blackbox";  ///< Dumps go to dir/<UTC time>/.
+  bool on_degraded = true;                          ///< Dump when the status turns degraded.
+  int max_memory_mb = 1024;      ///< The rings and a dump's copy of them must fit.
+  double camera_rate_hz = 30.0;  ///< Rate assumed where the config does not fix it.
+};
+
 /// The whole daemon configuration. Plain struct, thread-compatible.
 struct Config {
   std::string source_file;  ///< The file it was read from (for messages).
@@ -165,6 +197,8 @@ struct Config {
   std::vector<ObstacleConfig> obstacles;
   DdsConfig dds;
   LoggingConfig logging;
+  BlackBoxConfig blackbox;
+  TrackingConfig tracking;
 };
 
 /// Reads and validates a config file. Relative paths in it are resolved against

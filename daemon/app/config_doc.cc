@@ -66,7 +66,9 @@ std::string ConfigReferenceMarkdown() {
       "\n"
       "Cross-field checks: `timing.deadline_ms < 1000 / timing.rate_hz`; camera names are\n"
       "unique; a `sim` source's scene file exists and defines the camera; paths of `replay`\n"
-      "folders and obstacle meshes exist.\n"
+      "folders and obstacle meshes exist; with tracking on, its grid over `cell.bounds` at\n"
+      "`tracking.voxel_m` holds at most 50 million voxels, and `tracking.collision_radius_m` is\n"
+      "at most the smallest half-axis of a person (0.2 m).\n"
       "\n"
       "The shipped demo, `config/demo.yaml`, watches the simulated demo cell with four cameras.\n";
   for (const DocSection& section : ConfigDocSections()) {

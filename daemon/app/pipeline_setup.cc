@@ -1,5 +1,17 @@
 #include "app/pipeline_setup.h"
 
+#include <map>
+#include <memory>
+
+#ifdef HG_WITH_ARAVIS
+#include "capture/aravis_source.h"
+#endif
+#include "capture/replay_source.h"
+#include "capture/v4l2_source.h"
+#include "common/config_error.h"
+#include "common/yaml_file.h"
+#include "sim/scene.h"
+
 namespace hg::app {
 
 pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
@@ -30,6 +42,110 @@ std::vector<geometry::TriangleMesh> LoadObstacles(const Config& config) {
   std::vector<geometry::TriangleMesh> obstacles;
   for (const ObstacleConfig& o : config.obstacles) obstacles.push_back(geometry::LoadMesh(o.file));
   return obstacles;
+}
+
+std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
+                                                  const capture::SimClock& clock) {
+  std::map<std::string, std::shared_ptr<const sim::Scene>> scenes;
+  std::vector<pipeline::PipelineCamera> cameras;
+  for (const CameraConfig& c : config.cameras) {
+    if (const auto* replay = std::get_if<ReplaySourceConfig>(&c.source)) {
+      auto source = std::make_unique<capture::ReplaySource>(
+          capture::ReadRecordingCamera(replay->directory, replay->camera), clock,
+          replay->realtime ? capture::ReplayPacing::kRealtime : capture::ReplayPacing::kFast);
+      cameras.push_back({c.model, std::move(source), c.timeout_ms});
+      continue;
+    }
+#ifdef HG_WITH_ARAVIS
+    if (const auto* gige = std::get_if<AravisSourceConfig>(&c.source)) {
+      // The config's enums list the same values in the same order.
+      static_assert(static_cast<int>(capture::AravisOptions::Pixel::kRGB8) ==
+                    static_cast<int>(PixelFormat::kRGB8));
+      static_assert(static_cast<int>(capture::AravisOptions::Trigger::kHardware) ==
+                    static_cast<int>(Trigger::kHardware));
+      capture::AravisOptions o;
+      o.device = gige->device;
+      o.pixel_format = static_cast<capture::AravisOptions::Pixel>(gige->pixel_format);
+      o.exposure_us = gige->exposure_us;
+      o.gain_db = gige->gain_db;
+      o.frame_rate_hz = gige->frame_rate_hz;
+      o.trigger = static_cast<capture::AravisOptions::Trigger>(gige->trigger);
+      o.packet_size = gige->packet_size;
+      o.socket_buffer_bytes = gige->socket_buffer_bytes;
+      o.width = c.model.width;
+      o.height = c.model.height;
+      o.frame_timeout = std::chrono::milliseconds(c.timeout_ms);
+      cameras.push_back(
+          {c.model, std::make_unique<capture::AravisSource>(std::move(o)), c.timeout_ms});
+      continue;
+    }
+#endif
+    if (const auto* usb = std::get_if<V4l2SourceConfig>(&c.source)) {
+      static_assert(static_cast<int>(capture::V4l2Options::Format::kMjpeg) ==
+                    static_cast<int>(V4l2Format::kMjpeg));
+      capture::V4l2Options o;
+      o.device = usb->device;
+      o.format = static_cast<capture::V4l2Options::Format>(usb->format);
+      o.frame_rate_hz = usb->frame_rate_hz;
+      o.exposure = usb->exposure;
+      o.width = c.model.width;
+      o.height = c.model.height;
+      cameras.push_back(
+          {c.model, std::make_unique<capture::V4l2Source>(std::move(o)), c.timeout_ms});
+      continue;
+    }
+    const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
+    if (sim_source == nullptr) {
+      throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
+                                "': source type '" + ToString(TypeOf(c.source)) +
+                                "' is not available in this build (sim, replay, v4l2 and, with "
+                                "libaravis-dev, aravis are)");
+    }
+    auto& scene = scenes[sim_source->scene];
+    if (!scene) scene = std::make_shared<const sim::Scene>(sim::LoadScene(sim_source->scene));
+    int index = -1;
+    for (std::size_t i = 0; i < scene->cameras.size(); ++i) {
+      if (scene->cameras[i].model.name == sim_source->camera) index = static_cast<int>(i);
+    }
+    // The loader checked that the scene defines the camera.
+    auto source = std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, clock);
+    if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
+    cameras.push_back({c.model, std::move(source), c.timeout_ms});
+  }
+  return cameras;
+}
+
+std::vector<pipeline::BlackBoxCamera> BlackBoxCameras(const Config& config) {
+  using capture::FrameKind;
+  std::map<std::string, double> scene_rates;
+  std::vector<pipeline::BlackBoxCamera> out;
+  for (const CameraConfig& c : config.cameras) {
+    pipeline::BlackBoxCamera b;
+    b.model = c.model;
+    b.rate_hz = config.blackbox.camera_rate_hz;
+    if (const auto* s = std::get_if<SimSourceConfig>(&c.source)) {
+      b.kind = FrameKind::kMask;
+      auto [it, inserted] = scene_rates.emplace(s->scene, sim::Scene{}.rate_hz);
+      if (inserted) {
+        // Only the header's rate: the loader has validated the whole scene.
+        const YAML::Node rate = common::LoadYamlFile(s->scene)["scene"]["rate_hz"];
+        if (rate && rate.IsScalar()) it->second = rate.as<double>();
+      }
+      b.rate_hz = it->second;
+    } else if (const auto* r = std::get_if<ReplaySourceConfig>(&c.source)) {
+      const capture::RecordingCamera rec = capture::ReadRecordingCamera(r->directory, r->camera);
+      b.kind = rec.kind;
+      if (rec.rate_hz > 0.0) b.rate_hz = rec.rate_hz;
+    } else if (const auto* a = std::get_if<AravisSourceConfig>(&c.source)) {
+      b.kind = a->pixel_format == PixelFormat::kMono8 ? FrameKind::kMono : FrameKind::kRgb;
+      if (a->frame_rate_hz) b.rate_hz = *a->frame_rate_hz;
+    } else if (const auto* v = std::get_if<V4l2SourceConfig>(&c.source)) {
+      b.kind = v->format == V4l2Format::kGrey ? FrameKind::kMono : FrameKind::kRgb;
+      if (v->frame_rate_hz) b.rate_hz = *v->frame_rate_hz;
+    }
+    out.push_back(std::move(b));
+  }
+  return out;
 }
 
 }  // namespace hg::app

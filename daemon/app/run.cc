@@ -2,22 +2,20 @@
 
 #include <csignal>
 #include <cstdio>
-#include <map>
+#include <filesystem>
+#include <memory>
+#include <optional>
 #include <thread>
 
 #include "app/pipeline_setup.h"
 #include "app/service.h"
-#ifdef HG_WITH_ARAVIS
-#include "capture/aravis_source.h"
-#endif
-#include "capture/replay_source.h"
+#include "app/tracking_stage.h"
 #include "capture/sim_source.h"
-#include "capture/v4l2_source.h"
 #include "common/config_error.h"
 #include "common/heartbeat.h"
 #include "geometry/mesh.h"
+#include "pipeline/black_box.h"
 #include "pipeline/pipeline.h"
-#include "sim/scene.h"
 #ifdef HG_WITH_DDS
 #include "publish/dds_publisher.h"
 #endif
@@ -28,6 +26,42 @@ namespace {
 std::atomic<bool> g_stop{false};
 
 void OnSignal(int /*signal*/) { g_stop.store(true); }
+
+std::atomic<bool> g_dump{false};
+
+void OnDumpSignal(int /*signal*/) { g_dump.store(true); }
+
+/// The black box of `config` (blackbox.seconds > 0), logging every dump.
+std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
+  std::error_code ec;
+  std::filesystem::create_directories(config.blackbox.dir, ec);
+  if (ec) {
+    throw common::ConfigError(config.source_file + ": blackbox.dir: cannot create '" +
+                              config.blackbox.dir + "': " + ec.message());
+  }
+  pipeline::BlackBoxOptions o;
+  o.seconds = config.blackbox.seconds;
+  o.directory = config.blackbox.dir;
+  o.max_memory_mb = config.blackbox.max_memory_mb;
+  o.on_dump = [](const pipeline::BlackBoxDump& d) {
+    if (!d.error.empty()) {
+      std::fprintf(stderr, "hullguardd: black box (%s): %llu frames written, %llu failed: %s\n",
+                   d.reason.c_str(), static_cast<unsigned long long>(d.frames),
+                   static_cast<unsigned long long>(d.failed), d.error.c_str());
+      return;
+    }
+    std::fprintf(stderr,
+                 "hullguardd: black box (%s): wrote %llu frames (%.2f s, %llu torn) to %s\n",
+                 d.reason.c_str(), static_cast<unsigned long long>(d.frames),
+                 (d.last_ns - d.first_ns) * 1e-9, static_cast<unsigned long long>(d.torn),
+                 d.directory.c_str());
+  };
+  auto box = std::make_unique<pipeline::BlackBox>(std::move(o), BlackBoxCameras(config));
+  std::fprintf(stderr, "hullguardd: black box: %.3g s of %zu cameras in %.0f MiB, dumps to %s\n",
+               config.blackbox.seconds, config.cameras.size(),
+               static_cast<double>(box->bytes()) / (1024.0 * 1024.0), config.blackbox.dir.c_str());
+  return box;
+}
 
 const char* StateName(pipeline::CameraState s) {
   switch (s) {
@@ -44,7 +78,7 @@ const char* StateName(pipeline::CameraState s) {
 }
 
 // One line of health: the periodic log line and systemd's STATUS=.
-std::string HealthLine(const pipeline::OccupancySnapshot& s) {
+std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage* tracking) {
   const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
   char head[256];
   std::snprintf(head, sizeof(head),
@@ -57,6 +91,16 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s) {
                 s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
                 static_cast<unsigned long long>(s.health.deadline_misses));
   std::string line = head;
+  if (tracking != nullptr) {
+    // The last tracked cycle's, which may be a cycle or two behind.
+    const TrackingStats t = tracking->stats();
+    char part[96];
+    std::snprintf(part, sizeof(part), " tracks %d tracking %.1f ms", t.tracks, t.last_ms);
+    line.insert(line.size() - 2, part);  // Before " |".
+    if (t.skipped > 0) {
+      line.insert(line.size() - 2, std::string(" skipped ").append(std::to_string(t.skipped)));
+    }
+  }
   for (const pipeline::CameraHealth& c : s.health.cameras) {
     char cam[128];
     std::snprintf(cam, sizeof(cam), " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
@@ -75,88 +119,29 @@ int RunPipeline(const Config& config, double duration_s) {
   const pipeline::PipelineOptions options = MakePipelineOptions(config);
   const std::vector<geometry::TriangleMesh> obstacles = LoadObstacles(config);
 
-  std::map<std::string, std::shared_ptr<const sim::Scene>> scenes;
   const auto start = std::chrono::steady_clock::now();
   const capture::SimClock sim_clock = capture::SimClock::Now();
-  std::vector<pipeline::PipelineCamera> cameras;
-  for (const CameraConfig& c : config.cameras) {
-    if (const auto* replay = std::get_if<ReplaySourceConfig>(&c.source)) {
-      if (!replay->realtime) {
-        throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
-                                  "': source.realtime: false needs a lock-step consumer; the "
-                                  "daemon replays in real time (as fast as possible and "
-                                  "deterministic: hullguard replay)");
-      }
-      auto source = std::make_unique<capture::ReplaySource>(
-          capture::ReadRecordingCamera(replay->directory, replay->camera), sim_clock);
-      cameras.push_back({c.model, std::move(source), c.timeout_ms});
-      continue;
-    }
-#ifdef HG_WITH_ARAVIS
-    if (const auto* gige = std::get_if<AravisSourceConfig>(&c.source)) {
-      // The config's enums list the same values in the same order.
-      static_assert(static_cast<int>(capture::AravisOptions::Pixel::kRGB8) ==
-                    static_cast<int>(PixelFormat::kRGB8));
-      static_assert(static_cast<int>(capture::AravisOptions::Trigger::kHardware) ==
-                    static_cast<int>(Trigger::kHardware));
-      capture::AravisOptions o;
-      o.device = gige->device;
-      o.pixel_format = static_cast<capture::AravisOptions::Pixel>(gige->pixel_format);
-      o.exposure_us = gige->exposure_us;
-      o.gain_db = gige->gain_db;
-      o.frame_rate_hz = gige->frame_rate_hz;
-      o.trigger = static_cast<capture::AravisOptions::Trigger>(gige->trigger);
-      o.packet_size = gige->packet_size;
-      o.socket_buffer_bytes = gige->socket_buffer_bytes;
-      o.width = c.model.width;
-      o.height = c.model.height;
-      o.frame_timeout = std::chrono::milliseconds(c.timeout_ms);
-      cameras.push_back(
-          {c.model, std::make_unique<capture::AravisSource>(std::move(o)), c.timeout_ms});
-      continue;
-    }
-#endif
-    if (const auto* usb = std::get_if<V4l2SourceConfig>(&c.source)) {
-      static_assert(static_cast<int>(capture::V4l2Options::Format::kMjpeg) ==
-                    static_cast<int>(V4l2Format::kMjpeg));
-      capture::V4l2Options o;
-      o.device = usb->device;
-      o.format = static_cast<capture::V4l2Options::Format>(usb->format);
-      o.frame_rate_hz = usb->frame_rate_hz;
-      o.exposure = usb->exposure;
-      o.width = c.model.width;
-      o.height = c.model.height;
-      cameras.push_back(
-          {c.model, std::make_unique<capture::V4l2Source>(std::move(o)), c.timeout_ms});
-      continue;
-    }
-    const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
-    if (sim_source == nullptr) {
-      throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
-                                "': source type '" + ToString(TypeOf(c.source)) +
-                                "' is not available in this build (sim, replay, v4l2 and, with "
-                                "libaravis-dev, aravis are)");
-    }
-    auto& scene = scenes[sim_source->scene];
-    if (!scene) scene = std::make_shared<const sim::Scene>(sim::LoadScene(sim_source->scene));
-    int index = -1;
-    for (std::size_t i = 0; i < scene->cameras.size(); ++i) {
-      if (scene->cameras[i].model.name == sim_source->camera) index = static_cast<int>(i);
-    }
-    // The loader checked that the scene defines the camera.
-    auto source = std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, sim_clock);
-    if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
-    cameras.push_back({c.model, std::move(source), c.timeout_ms});
-  }
+  std::vector<pipeline::PipelineCamera> cameras = MakeCameras(config, sim_clock);
+  // The black box's rings are allocated (and touched) before capture starts.
+  std::unique_ptr<pipeline::BlackBox> black_box;
+  if (config.blackbox.seconds > 0.0) black_box = MakeBlackBox(config);
 
   pipeline::Pipeline::Consumer consumer;
+  // Set before the pipeline starts, read by the fusion thread.
+  std::unique_ptr<TrackingStage> tracking;
+  TrackingStage::Consumer on_tracks;
 #ifdef HG_WITH_DDS
-  // Publish never blocks or throws; it runs on the fusion thread after each cycle.
+  // Publish never blocks or throws; it runs on the fusion thread after each
+  // cycle, PublishTracks on the tracking thread.
   publish::DdsPublisher publisher(
-      {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled}, config.timing.rate_hz);
+      {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled, config.tracking.enabled},
+      config.timing.rate_hz);
   if (config.dds.enabled) {
     consumer = [&publisher](const std::shared_ptr<const pipeline::OccupancySnapshot>& s) {
       publisher.Publish(*s);
+    };
+    on_tracks = [&publisher](const TrackedCycle& c) {
+      publisher.PublishTracks(c.sequence, c.stamp_ns, c.degraded, c.tracks);
     };
   }
 #else
@@ -165,7 +150,25 @@ int RunPipeline(const Config& config, double duration_s) {
   }
 #endif
   common::Heartbeats heartbeats;
+  if (config.tracking.enabled) {
+    // Static voxel states from the cameras and obstacles, once, before READY=1.
+    const auto build_start = std::chrono::steady_clock::now();
+    tracking = std::make_unique<TrackingStage>(
+        MakeTrackerOptions(config.tracking, config.timing.rate_hz), config.cell.bounds,
+        MakeStaticScene(config, obstacles), std::move(on_tracks), &heartbeats);
+    std::fprintf(
+        stderr, "hullguardd: tracking on %zu voxels of %g m, built in %.2f s\n",
+        tracking->tracker().voxel_map().grid().size(), config.tracking.voxel_m,
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count());
+    // The fusion thread only hands the snapshot over (a shared_ptr copy).
+    consumer = [publish = std::move(consumer), stage = tracking.get()](
+                   const std::shared_ptr<const pipeline::OccupancySnapshot>& s) {
+      if (publish) publish(s);
+      stage->Offer(s);
+    };
+  }
   pipeline::Pipeline pipeline(options, std::move(cameras), obstacles, consumer, &heartbeats);
+  if (black_box) pipeline.SetBlackBox(black_box.get());
   const int main_heartbeat = heartbeats.Register("main");
   // systemd (Type=notify): READY=1 once the cameras are open and the first
   // cycle is published; WATCHDOG=1 only while every stage's heartbeat moves.
@@ -173,6 +176,9 @@ int RunPipeline(const Config& config, double duration_s) {
   ServiceWatchdog watchdog(heartbeats, notifier);
   std::signal(SIGTERM, OnSignal);
   std::signal(SIGINT, OnSignal);
+  // Also without a black box: SIGUSR1's default action would end the daemon.
+  std::signal(SIGUSR1, OnDumpSignal);
+  if (tracking) tracking->Start();
   pipeline.Start();
   watchdog.Start();
   std::fprintf(stderr, "hullguardd: running %s\n", Summary(config).c_str());
@@ -180,23 +186,52 @@ int RunPipeline(const Config& config, double duration_s) {
   std::fprintf(stderr, "hullguardd: sim/replay time 0 is %lld ns (CLOCK_REALTIME)\n",
                static_cast<long long>(sim_clock.epoch_ns));
   bool ready = false;
+  std::uint64_t blackbox_seen = 0;
+  bool blackbox_was_ok = false;  // Starting cameras make the first cycles degraded.
+  std::optional<std::chrono::steady_clock::time_point> last_degraded_dump;
+  bool degraded_dump_due = false;
   auto next_report = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   while (!g_stop.load()) {
     heartbeats.Beat(main_heartbeat);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     const auto now = std::chrono::steady_clock::now();
     if (duration_s > 0 && now - start >= std::chrono::duration<double>(duration_s)) break;
+    if (g_dump.exchange(false)) {
+      if (!black_box) {
+        std::fprintf(stderr, "hullguardd: SIGUSR1: the black box is off (blackbox.seconds: 0)\n");
+      } else if (!black_box->RequestDump("SIGUSR1")) {
+        std::fprintf(stderr, "hullguardd: SIGUSR1: a black-box dump is already running\n");
+      }
+    }
+    if (black_box && config.blackbox.on_degraded) {
+      // Dumps on the turn from ok to degraded, at most one per ring length
+      // (a flapping status would otherwise write the same frames again and
+      // again); a turn during another dump is dumped after it.
+      if (const auto s = pipeline.Latest(); s && s->sequence != blackbox_seen) {
+        blackbox_seen = s->sequence;
+        if (s->health.degraded && blackbox_was_ok &&
+            (!last_degraded_dump ||
+             now - *last_degraded_dump >= std::chrono::duration<double>(config.blackbox.seconds))) {
+          degraded_dump_due = true;
+        }
+        blackbox_was_ok = !s->health.degraded;
+      }
+      if (degraded_dump_due && !black_box->busy() && black_box->RequestDump("degraded")) {
+        degraded_dump_due = false;
+        last_degraded_dump = now;
+      }
+    }
     if (!ready) {
       if (const auto s = pipeline.Latest()) {
         notifier.Ready();
-        watchdog.SetStatus(HealthLine(*s));
+        watchdog.SetStatus(HealthLine(*s, tracking.get()));
         ready = true;
       }
     }
     if (now >= next_report) {
       next_report += std::chrono::seconds(1);
       if (const auto s = pipeline.Latest()) {
-        const std::string line = HealthLine(*s);
+        const std::string line = HealthLine(*s, tracking.get());
         std::fprintf(stderr, "hullguardd: %s\n", line.c_str());
         watchdog.SetStatus(line);
       }
@@ -205,8 +240,9 @@ int RunPipeline(const Config& config, double duration_s) {
   notifier.Stopping();
   watchdog.Stop();
   pipeline.Stop();
+  if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
-    std::fprintf(stderr, "hullguardd: %s\n", HealthLine(*s).c_str());
+    std::fprintf(stderr, "hullguardd: %s\n", HealthLine(*s, tracking.get()).c_str());
   }
   std::fprintf(stderr, "hullguardd: stopped\n");
   return 0;

@@ -2,13 +2,19 @@
 
 #include <arpa/inet.h>
 #include <arv.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
 #include <memory>
 #include <utility>
+#include <vector>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
@@ -28,6 +34,12 @@ constexpr std::chrono::seconds kRepeatLog{30};
 // Broadcast discovery answers within about a second; sources opening together
 // share one discovery run instead of each waiting for its own.
 constexpr milliseconds kDiscoveryReuse{1500};
+// A live camera answers a discovery command within milliseconds; the probe
+// asks twice (a lost datagram) and gives up after this long.
+constexpr milliseconds kProbeTimeout{500};
+// The destructor waits at least this long for releases of cameras that
+// answer (a few commands each), even when Stop() was called long before.
+constexpr milliseconds kMinReleaseWait{250};
 
 // Aravis' device list and interface objects are process globals without
 // locking of their own: every source discovers and opens cameras under this.
@@ -93,6 +105,85 @@ int OpenCvBayerCode(AravisOptions::Pixel pixel) {
 bool IsIpv4Address(const std::string& text) {
   in_addr address{};
   return inet_pton(AF_INET, text.c_str(), &address) == 1;
+}
+
+// Closes a socket when it goes out of scope.
+class SocketFd {
+ public:
+  explicit SocketFd(int fd) : fd_(fd) {}
+  ~SocketFd() {
+    if (fd_ >= 0) close(fd_);
+  }
+  SocketFd(const SocketFd&) = delete;
+  SocketFd& operator=(const SocketFd&) = delete;
+  [[nodiscard]] int get() const { return fd_; }
+
+ private:
+  int fd_;
+};
+
+// Whether a GigE Vision device answers at `address` (dotted IPv4): one
+// DISCOVERY_CMD to its control port, unicast, sent again halfway through
+// kProbeTimeout. Aravis' own opening of an absent camera blocks 2.5 s, holding
+// the process-wide lock and ignoring Stop(); this returns within the timeout,
+// at once when the host reports the port unreachable, and within a poll slice
+// of `stopped` being set. False with *error set when nothing answered.
+bool ProbeGvcp(const std::string& address, const std::atomic<bool>& stopped, std::string* error) {
+  constexpr std::uint16_t kGvcpPort = 3956;
+  constexpr std::uint16_t kDiscoveryCmd = 0x0002;
+  constexpr std::uint16_t kDiscoveryAck = 0x0003;
+  SocketFd fd(socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC, 0));
+  if (fd.get() < 0) {
+    *error = std::string("probe: socket: ") + std::strerror(errno);
+    return false;
+  }
+  sockaddr_in peer{};
+  peer.sin_family = AF_INET;
+  peer.sin_port = htons(kGvcpPort);
+  inet_pton(AF_INET, address.c_str(), &peer.sin_addr);
+  // Connected: only the camera's answers arrive, and an ICMP "port
+  // unreachable" shows as ECONNREFUSED.
+  if (connect(fd.get(), reinterpret_cast<const sockaddr*>(&peer), sizeof(peer)) != 0) {
+    *error = std::string("probe: ") + std::strerror(errno);
+    return false;
+  }
+  static std::atomic<std::uint16_t> next_id{1};
+  const std::uint16_t id = static_cast<std::uint16_t>(next_id.fetch_add(1) | 0x8000);
+  // GVCP command header, big-endian: key 0x42, flags (0x01: acknowledge),
+  // command, payload length 0, request id.
+  const std::uint8_t command[8] = {0x42,
+                                   0x01,
+                                   static_cast<std::uint8_t>(kDiscoveryCmd >> 8),
+                                   static_cast<std::uint8_t>(kDiscoveryCmd & 0xff),
+                                   0x00,
+                                   0x00,
+                                   static_cast<std::uint8_t>(id >> 8),
+                                   static_cast<std::uint8_t>(id & 0xff)};
+  const Clock::time_point start = Clock::now();
+  int sent = 0;
+  std::uint8_t answer[600];
+  for (;;) {
+    const Clock::time_point now = Clock::now();
+    if (stopped.load()) {
+      *error = "stopped";
+      return false;
+    }
+    if (now - start >= kProbeTimeout) break;
+    if (sent == 0 || (sent == 1 && now - start >= kProbeTimeout / 2)) {
+      if (send(fd.get(), command, sizeof(command), 0) < 0 && errno == ECONNREFUSED) break;
+      ++sent;
+    }
+    pollfd p{fd.get(), POLLIN, 0};
+    if (poll(&p, 1, static_cast<int>(kPollSlice.count())) <= 0) continue;
+    const ssize_t n = recv(fd.get(), answer, sizeof(answer), 0);
+    if (n < 0 && errno == ECONNREFUSED) break;
+    if (n >= 8 && ((answer[2] << 8) | answer[3]) == kDiscoveryAck &&
+        ((answer[6] << 8) | answer[7]) == id) {
+      return true;
+    }
+  }
+  *error = "no GigE Vision device answers at " + address;
+  return false;
 }
 
 // The Aravis device id to open for `device`: an IPv4 address is opened as it
@@ -224,12 +315,25 @@ struct AravisSource::Session {
   guint64 underruns_seen = 0;
   guint64 resends_seen = 0;
   bool first_frame_logged = false;
+  // Declared dead (no frame for the frame timeout): releasing it sends no
+  // stop-acquisition command, which would only wait for its timeout.
+  bool lost = false;
   // Set by the capture thread when the session delivered a frame: the control
   // thread then resets its backoff.
   std::atomic<bool> delivered{false};
 };
 
-AravisSource::AravisSource(AravisOptions options) : options_(std::move(options)) {
+struct AravisSource::Releaser {
+  std::mutex mutex;
+  std::condition_variable wake;  // Work arrived, or done.
+  std::condition_variable idle;  // Nothing queued or being released.
+  std::vector<Session*> queue;   // Guarded by mutex.
+  bool busy = false;             // Guarded by mutex.
+  bool done = false;             // Guarded by mutex.
+};
+
+AravisSource::AravisSource(AravisOptions options)
+    : options_(std::move(options)), releaser_(std::make_shared<Releaser>()) {
   if (options_.frame_rate_hz && *options_.frame_rate_hz > 0.0 &&
       options_.frame_timeout.count() < 2000.0 / *options_.frame_rate_hz) {
     Log(options_.device,
@@ -237,8 +341,9 @@ AravisSource::AravisSource(AravisOptions options) : options_(std::move(options))
         "the connection will be reopened again and again",
         static_cast<long long>(options_.frame_timeout.count()), *options_.frame_rate_hz);
   }
-  to_release_.reserve(4);
-  releaser_ = std::thread([this] { ReleaseLoop(); });
+  releaser_->queue.reserve(4);
+  // The thread holds its own reference: it may outlive the source.
+  release_thread_ = std::thread([releaser = releaser_] { ReleaseLoop(releaser); });
   control_ = std::thread([this] { ControlLoop(); });
 }
 
@@ -246,42 +351,67 @@ AravisSource::~AravisSource() {
   Stop();
   if (control_.joinable()) control_.join();
   // The control thread has ended and Next() is not running: whichever of the
-  // handoff places holds the session, it is released now.
-  Session* sessions[] = {active_, offered_.exchange(nullptr), returned_.exchange(nullptr)};
+  // handoff places holds the session, it is released now. The streamed one
+  // counts as lost when its frames had stopped.
+  if (active_ != nullptr && Clock::now() - last_good_ >= options_.frame_timeout) {
+    active_->lost = true;
+  }
+  Session* back = returned_.exchange(nullptr);
+  if (back != nullptr) back->lost = true;
+  Session* sessions[] = {active_, offered_.exchange(nullptr), back};
   active_ = nullptr;
   for (Session* s : sessions) {
     if (s != nullptr) Retire(s);
   }
-  {
-    std::lock_guard<std::mutex> lock(release_mutex_);
-    release_done_ = true;
+  const Clock::time_point stopped_at{Clock::duration(stop_ticks_.load())};
+  const Clock::time_point deadline =
+      std::max(stopped_at + kReleaseGrace, Clock::now() + kMinReleaseWait);
+  std::unique_lock<std::mutex> lock(releaser_->mutex);
+  releaser_->done = true;
+  releaser_->wake.notify_all();
+  const bool drained = releaser_->idle.wait_until(
+      lock, deadline, [this] { return releaser_->queue.empty() && !releaser_->busy; });
+  const std::size_t pending = releaser_->queue.size() + (releaser_->busy ? 1 : 0);
+  lock.unlock();
+  if (drained) {
+    release_thread_.join();
+  } else {
+    // systemd stops the daemon after a few seconds: the release thread finishes
+    // on its own (it needs nothing of this object) or ends with the process.
+    Log(options_.device, "leaving %zu unanswered camera release(s) to finish in the background",
+        pending);
+    release_thread_.detach();
   }
-  release_wake_.notify_all();
-  if (releaser_.joinable()) releaser_.join();
 }
 
 void AravisSource::Retire(Session* session) {
   {
-    std::lock_guard<std::mutex> lock(release_mutex_);
-    to_release_.push_back(session);
+    std::lock_guard<std::mutex> lock(releaser_->mutex);
+    releaser_->queue.push_back(session);
   }
-  release_wake_.notify_all();
+  releaser_->wake.notify_all();
 }
 
-void AravisSource::ReleaseLoop() {
-  std::unique_lock<std::mutex> lock(release_mutex_);
+void AravisSource::ReleaseLoop(const std::shared_ptr<Releaser>& releaser) {
+  Releaser& r = *releaser;
+  std::unique_lock<std::mutex> lock(r.mutex);
   for (;;) {
-    release_wake_.wait(lock, [this] { return !to_release_.empty() || release_done_; });
-    if (to_release_.empty()) return;
-    Session* session = to_release_.back();
-    to_release_.pop_back();
+    r.wake.wait(lock, [&r] { return !r.queue.empty() || r.done; });
+    if (r.queue.empty()) return;
+    Session* session = r.queue.back();
+    r.queue.pop_back();
+    r.busy = true;
     lock.unlock();
     Release(session);
     lock.lock();
+    r.busy = false;
+    if (r.queue.empty()) r.idle.notify_all();
   }
 }
 
 void AravisSource::Stop() {
+  Clock::rep expected = 0;
+  stop_ticks_.compare_exchange_strong(expected, Clock::now().time_since_epoch().count());
   stopped_.store(true);
   std::lock_guard<std::mutex> lock(control_mutex_);
   control_wake_.notify_all();
@@ -299,11 +429,28 @@ AravisSource::Stats AravisSource::stats() const {
   return s;
 }
 
+TransportStats AravisSource::transport_stats() const {
+  TransportStats s;
+  s.completed = completed_.load(std::memory_order_relaxed);
+  s.failed = failed_.load(std::memory_order_relaxed);
+  s.underruns = underruns_.load(std::memory_order_relaxed);
+  s.resends = resends_.load(std::memory_order_relaxed);
+  return s;
+}
+
 AravisSource::Session* AravisSource::Connect(std::string* error) {
   GError* e = nullptr;
   auto session = std::make_unique<Session>();
+  if (IsIpv4Address(options_.device) && !ProbeGvcp(options_.device, stopped_, error)) {
+    return nullptr;
+  }
   {
     std::lock_guard<std::mutex> lock(AravisSystemMutex());
+    // Another source may have held the lock for seconds.
+    if (stopped_.load()) {
+      *error = "stopped";
+      return nullptr;
+    }
     std::string id;
     if (!ResolveDeviceId(options_.device, &id, error)) return nullptr;
     session->camera = arv_camera_new(id.c_str(), &e);
@@ -434,9 +581,9 @@ AravisSource::Session* AravisSource::Connect(std::string* error) {
 }
 
 void AravisSource::Release(Session* session) {
-  if (session->camera != nullptr && session->stream != nullptr) {
-    // A dead camera answers nothing; the command times out and the release
-    // goes on regardless.
+  if (session->camera != nullptr && session->stream != nullptr && !session->lost) {
+    // A camera that died unnoticed answers nothing; the command times out and
+    // the release goes on regardless.
     GError* e = nullptr;
     arv_camera_stop_acquisition(session->camera, &e);
     g_clear_error(&e);
@@ -459,6 +606,7 @@ void AravisSource::ControlLoop() {
     if (Session* back = returned_.exchange(nullptr)) {
       Log(options_.device, "no complete frame for %lld ms: connection lost, reopening",
           static_cast<long long>(options_.frame_timeout.count()));
+      back->lost = true;
       Retire(back);
       current = nullptr;
       was_lost = true;
@@ -470,6 +618,7 @@ void AravisSource::ControlLoop() {
     if (current == nullptr && now >= next_attempt) {
       std::string error;
       current = Connect(&error);
+      if (current == nullptr && stopped_.load()) break;
       now = Clock::now();
       if (current != nullptr) {
         if (connections_.fetch_add(1) > 0 || was_lost) {

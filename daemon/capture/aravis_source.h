@@ -7,11 +7,11 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
-#include <vector>
 
 #include "capture/camera_source.h"
 
@@ -76,11 +76,20 @@ struct AravisOptions {
 /// control thread for release and returns false; a new connection is picked
 /// up by a later Next().
 ///
+/// A camera given by IPv4 address is first asked whether it is there (one
+/// GigE Vision discovery command, unicast, answered within milliseconds by a
+/// live camera) before Aravis opens it: Aravis waits 2.5 s for an absent
+/// camera, under a process-wide lock and deaf to Stop().
+///
 /// Thread-compatible like every CameraSource: one capture thread calls Next();
-/// Stop(), stats() and corrupt_frames() may be called from any thread. The
-/// destructor must not run concurrently with Next(); it waits for releases
-/// under way (seconds when a camera died). No allocation per frame after the
-/// first frame of each image size.
+/// Stop(), stats(), transport_stats() and corrupt_frames() may be called from
+/// any thread. The destructor must not run concurrently with Next(). It is
+/// bounded for systemd's stop timeout: a camera that answers is released at
+/// once, but releasing a dead one takes Aravis 7.5 s of command timeouts
+/// (12.5 s with stop-acquisition, which a camera known lost is not sent). The destructor
+/// waits for releases until kReleaseGrace after Stop() and then leaves the
+/// rest to the release thread, which finishes on its own or ends with the
+/// process. No allocation per frame after the first frame of each image size.
 class AravisSource : public CameraSource {
  public:
   /// Starts the control thread, which opens the camera in the background.
@@ -88,6 +97,9 @@ class AravisSource : public CameraSource {
   ~AravisSource() override;
   AravisSource(const AravisSource&) = delete;
   AravisSource& operator=(const AravisSource&) = delete;
+
+  /// How long after Stop() the destructor waits for camera releases at most.
+  static constexpr std::chrono::milliseconds kReleaseGrace{1000};
 
   bool Next(Frame* frame, std::chrono::milliseconds timeout) override;
   void Stop() override;
@@ -107,16 +119,21 @@ class AravisSource : public CameraSource {
     bool connected = false;        ///< A camera is open and streaming.
   };
   [[nodiscard]] Stats stats() const;
+  /// The counters of stats() that go into the camera's status. Thread-safe.
+  [[nodiscard]] TransportStats transport_stats() const override;
 
  private:
   struct Session;
+  // The release thread's queue. Shared with that thread, which may outlive the
+  // source when a dead camera's release is left to finish on its own.
+  struct Releaser;
 
   void ControlLoop();
-  void ReleaseLoop();
   Session* Connect(std::string* error);
   // Hands a session to the release thread.
   void Retire(Session* session);
   static void Release(Session* session);
+  static void ReleaseLoop(const std::shared_ptr<Releaser>& releaser);
   void SampleStreamStats(Session* session);
 
   const AravisOptions options_;
@@ -131,17 +148,17 @@ class AravisSource : public CameraSource {
   std::uint64_t index_ = 0;                          // Capture thread only.
 
   std::atomic<bool> stopped_{false};
+  // steady_clock ticks of the first Stop(); the destructor's release deadline
+  // counts from there, so sources stopped together wait together.
+  std::atomic<std::chrono::steady_clock::rep> stop_ticks_{0};
   std::mutex control_mutex_;  // Guards the wake-up of the control thread only.
   std::condition_variable control_wake_;
   std::thread control_;
 
-  // Releasing a dead camera takes Aravis about 12 s of command timeouts;
-  // its own thread does it so that reopening need not wait.
-  std::mutex release_mutex_;
-  std::condition_variable release_wake_;
-  std::vector<Session*> to_release_;  // Guarded by release_mutex_.
-  bool release_done_ = false;         // Guarded by release_mutex_.
-  std::thread releaser_;
+  // Releasing a dead camera takes Aravis seconds of command timeouts; its
+  // own thread does it so that reopening need not wait.
+  std::shared_ptr<Releaser> releaser_;
+  std::thread release_thread_;
 
   std::atomic<std::uint64_t> completed_{0};
   std::atomic<std::uint64_t> failed_{0};

@@ -28,6 +28,15 @@ struct Frame {
   std::uint64_t index = 0;    ///< Frame counter of the source.
 };
 
+/// Counters of a source's own transport (GigE Vision streams); all zero for
+/// sources without one. Totals since the source was made, over reconnections.
+struct TransportStats {
+  std::uint64_t completed = 0;  ///< Complete frames delivered.
+  std::uint64_t failed = 0;     ///< Failed, incomplete or unusable frames.
+  std::uint64_t underruns = 0;  ///< Frames lost for lack of a free buffer (host too slow).
+  std::uint64_t resends = 0;    ///< Packets the camera resent on request (lost on the way).
+};
+
 /// A camera source. Thread-compatible: one capture thread calls Next(); Stop()
 /// may be called from any thread and makes a blocked Next() return soon.
 class CameraSource {
@@ -39,6 +48,8 @@ class CameraSource {
   virtual void Stop() = 0;
   /// Frames the source received but could not use (unreadable, truncated).
   [[nodiscard]] virtual std::uint64_t corrupt_frames() const { return 0; }
+  /// Transport counters; may be called from any thread while Next() runs.
+  [[nodiscard]] virtual TransportStats transport_stats() const { return {}; }
 };
 
 }  // namespace hg::capture

@@ -1,7 +1,8 @@
 #pragma once
 /// @file
-/// The `replay` camera source: one camera of a recording folder played back in
-/// real time.
+/// The `replay` camera source: one camera of a recording folder (`hullguard
+/// record`, the black box or `hullguard synth`) played back, in real time or
+/// as fast as it is consumed.
 
 #include <atomic>
 #include <chrono>
@@ -9,37 +10,33 @@
 #include <vector>
 
 #include "capture/camera_source.h"
+#include "capture/recording.h"
 #include "capture/sim_source.h"
 
 namespace hg::capture {
 
-/// What a recording folder holds for one camera (read from manifest.yaml, the
-/// layout `hullguard synth` writes; docs/synth.md).
-struct RecordingCamera {
-  std::string directory;
-  std::string camera;
-  double rate_hz = 30.0;
-  double time_offset_s = 0.0;  ///< This camera's capture offset within a frame period.
-  int frames = 0;
-  bool masks = false;   ///< masks/<camera>/NNNNNN.png present (preferred).
-  bool colour = false;  ///< colour/<camera>/NNNNNN.png present.
+/// How a ReplaySource paces its frames.
+enum class ReplayPacing : std::uint8_t {
+  /// Each frame at its recorded capture time after the clock's start,
+  /// stamped with that instant; frames that fell due while the capture thread
+  /// was busy are skipped, as a camera's would be.
+  kRealtime,
+  /// Every frame, in order, as soon as Next() is called, stamped with the
+  /// host time of delivery (CLOCK_REALTIME). For load tests: cameras are not
+  /// kept in step with each other, so the occupancy is not the recorded
+  /// scene's; `hullguard replay` is the faithful fast replay.
+  kFast,
 };
 
-/// Reads the manifest of a recording folder for one camera.
-/// @throws common::ConfigError naming the file when the manifest is missing or
-/// bad, or does not list the camera.
-[[nodiscard]] RecordingCamera ReadRecordingCamera(const std::string& directory,
-                                                  const std::string& camera);
-
-/// Plays frame i of the camera at i / rate_hz + its offset after the clock's
-/// start, stamped with that instant, from its masks (FrameKind::kMask) or, when
-/// the recording has none, its colour frames (FrameKind::kRgb, for the
-/// background model). After the last frame it delivers nothing more, as a
+/// Plays one camera of a recording: masks (FrameKind::kMask), Mono8 or RGB
+/// frames as recorded (synth recordings with masks play their masks, else
+/// their colour frames). After the last frame it delivers nothing more, as a
 /// camera that stopped. An unreadable frame is counted in corrupt_frames()
 /// and skipped. Paced by sleeping in Next() (capture thread only).
 class ReplaySource : public CameraSource {
  public:
-  ReplaySource(RecordingCamera recording, SimClock clock);
+  ReplaySource(RecordingCamera recording, SimClock clock,
+               ReplayPacing pacing = ReplayPacing::kRealtime);
 
   bool Next(Frame* frame, std::chrono::milliseconds timeout) override;
   void Stop() override { stopped_.store(true); }
@@ -48,19 +45,20 @@ class ReplaySource : public CameraSource {
   }
 
   /// Lock-step use (`hullguard replay`): reads frame `index` into *frame
-  /// without pacing, stamped with the clock's epoch plus its capture time
-  /// (index / rate_hz + the camera's offset). False when the file is missing
-  /// or unreadable.
+  /// without pacing, stamped with the clock's epoch plus its recording time.
+  /// False when the file is missing or unreadable.
   bool ReadFrame(int index, Frame* frame);
   [[nodiscard]] const RecordingCamera& recording() const { return recording_; }
+  /// Number of frames in the recording.
+  [[nodiscard]] int frames() const { return static_cast<int>(recording_.frames.size()); }
 
  private:
   [[nodiscard]] std::chrono::steady_clock::time_point Due(int index) const;
-  bool Load(int index, Frame* frame);
+  [[nodiscard]] std::int64_t StampOf(int index) const;
 
   RecordingCamera recording_;
   SimClock clock_;
-  std::chrono::duration<double> offset_;
+  ReplayPacing pacing_;
   int next_index_ = 0;
   std::vector<unsigned char> file_bytes_;  // Reused read buffer.
   std::string path_;                       // Reused path buffer.

@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "octree/camera_view.h"
+#include "pipeline/black_box.h"
 #include "silhouette/tile_dilation.h"
 
 namespace hg::pipeline {
@@ -85,6 +86,7 @@ void Pipeline::CaptureLoop(int camera) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
     if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
     ProcessFrame(camera, frame);
+    if (black_box_ != nullptr) black_box_->Push(camera, frame);
   }
 }
 
@@ -280,6 +282,12 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
     h.drops = c.slot.drops();
     h.corrupt =
         c.corrupt.load(std::memory_order_relaxed) + (c.source ? c.source->corrupt_frames() : 0);
+    const capture::TransportStats transport =
+        c.source ? c.source->transport_stats() : capture::TransportStats{};
+    h.completed = transport.completed;
+    h.failed = transport.failed;
+    h.underruns = transport.underruns;
+    h.resends = transport.resends;
     health.degraded = health.degraded || !live;
   }
   // Pass 2: quadtrees, each mask dilated for its camera's lag behind the

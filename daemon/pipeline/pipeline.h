@@ -24,6 +24,8 @@
 
 namespace hg::pipeline {
 
+class BlackBox;
+
 struct PipelineOptions {
   common::Box3 bounds;
   int depth = 9;
@@ -89,6 +91,11 @@ class Pipeline {
   ~Pipeline();
   Pipeline(const Pipeline&) = delete;
   Pipeline& operator=(const Pipeline&) = delete;
+
+  /// Before Start(): every captured frame is also pushed into `box` (a copy
+  /// into a preallocated slot, after the frame was processed). `box` must
+  /// outlive the pipeline's threads.
+  void SetBlackBox(BlackBox* box) { black_box_ = box; }
 
   void Start();
   /// Stops every thread and returns when they have ended (within about 100 ms).
@@ -162,6 +169,7 @@ class Pipeline {
   std::unique_ptr<octree::Octree> tree_;
   Consumer consumer_;
   common::Heartbeats* heartbeats_ = nullptr;
+  BlackBox* black_box_ = nullptr;
   int fusion_heartbeat_ = -1;
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
   std::vector<std::shared_ptr<OccupancySnapshot>> pool_;

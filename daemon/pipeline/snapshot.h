@@ -29,6 +29,12 @@ struct CameraHealth {
   /// Image fault (capture::CameraFault: 0 none, 1 frozen, 2 black, 3 saturated,
   /// 4 moved); a faulty camera sees nothing, as a stale one.
   std::uint8_t fault = 0;
+  /// The source's transport counters (capture::TransportStats: GigE Vision;
+  /// zero for other sources), totals over reconnections.
+  std::uint64_t completed = 0;  ///< Complete frames the source delivered.
+  std::uint64_t failed = 0;     ///< Failed, incomplete or unusable frames.
+  std::uint64_t underruns = 0;  ///< Frames lost for lack of a free buffer.
+  std::uint64_t resends = 0;    ///< Packets the camera resent on request.
 };
 
 struct PipelineHealth {

@@ -75,8 +75,14 @@ struct DdsPublisher::Samples {
   std::vector<hullguard_CameraStatus> cameras;
 };
 
+struct DdsPublisher::TracksSamples {
+  hullguard_Tracks tracks{};
+  std::vector<hullguard_Track> storage;
+};
+
 std::string OccupancyTopicName(const std::string& prefix) { return prefix + "/occupancy"; }
 std::string StatusTopicName(const std::string& prefix) { return prefix + "/status"; }
+std::string TracksTopicName(const std::string& prefix) { return prefix + "/tracks"; }
 
 nanoseconds OfferedDeadline(double rate_hz) { return 2 * CyclePeriod(rate_hz); }
 
@@ -88,10 +94,14 @@ dds::Qos OccupancyWriterQos(double rate_hz) {
   return WriterQos(rate_hz, DDS_RELIABILITY_BEST_EFFORT);
 }
 dds::Qos StatusWriterQos(double rate_hz) { return WriterQos(rate_hz, DDS_RELIABILITY_RELIABLE); }
+dds::Qos TracksWriterQos(double rate_hz) { return WriterQos(rate_hz, DDS_RELIABILITY_RELIABLE); }
 dds::Qos OccupancyReaderQos(nanoseconds deadline) {
   return ReaderQos(deadline, DDS_RELIABILITY_BEST_EFFORT);
 }
 dds::Qos StatusReaderQos(nanoseconds deadline) {
+  return ReaderQos(deadline, DDS_RELIABILITY_RELIABLE);
+}
+dds::Qos TracksReaderQos(nanoseconds deadline) {
   return ReaderQos(deadline, DDS_RELIABILITY_RELIABLE);
 }
 
@@ -99,7 +109,9 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
     : enabled_(config.enabled),
       occupancy_topic_(OccupancyTopicName(config.topic_prefix)),
       status_topic_(StatusTopicName(config.topic_prefix)),
-      samples_(std::make_unique<Samples>()) {
+      tracks_topic_(TracksTopicName(config.topic_prefix)),
+      samples_(std::make_unique<Samples>()),
+      tracks_samples_(std::make_unique<TracksSamples>()) {
   CyclePeriod(rate_hz);  // Validates the rate even when disabled.
   if (!enabled_) return;
   participant_ = dds::Participant(static_cast<dds_domainid_t>(config.domain_id));
@@ -108,6 +120,11 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
   occupancy_writer_ =
       dds::Writer(participant_, occupancy_topic_entity_, OccupancyWriterQos(rate_hz).get());
   status_writer_ = dds::Writer(participant_, status_topic_entity_, StatusWriterQos(rate_hz).get());
+  if (config.tracks) {
+    tracks_topic_entity_ = dds::Topic(participant_, &hullguard_Tracks_desc, tracks_topic_);
+    tracks_writer_ =
+        dds::Writer(participant_, tracks_topic_entity_, TracksWriterQos(rate_hz).get());
+  }
 }
 
 DdsPublisher::~DdsPublisher() = default;
@@ -146,6 +163,10 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
     out.drops = c.drops;
     out.corrupt = c.corrupt;
     out.fault = c.fault;
+    out.completed = c.completed;
+    out.failed = c.failed;
+    out.underruns = c.underruns;
+    out.resends = c.resends;
   }
   st.silhouette_ms = static_cast<float>(health.silhouette_ms);
   st.skew_ms = static_cast<float>(health.skew_ms);
@@ -156,6 +177,35 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
 
   if (occupancy_writer_.Write(&occ) < 0) ++write_failures_;
   if (status_writer_.Write(&st) < 0) ++write_failures_;
+}
+
+void DdsPublisher::PublishTracks(std::uint64_t sequence, std::int64_t stamp_ns, bool degraded,
+                                 std::span<const tracking::Track> tracks) {
+  if (!tracks_writer_) return;
+  TracksSamples& s = *tracks_samples_;
+  hullguard_Tracks& out = s.tracks;
+  out.sequence = sequence;
+  out.stamp_ns = stamp_ns;
+  out.degraded = degraded;
+  Grow(out.tracked, s.storage, tracks.size());
+  for (std::size_t i = 0; i < tracks.size(); ++i) {
+    const tracking::Track& t = tracks[i];
+    hullguard_Track& o = s.storage[i];
+    o.id = t.id;
+    for (int k = 0; k < 3; ++k) {
+      o.centre[k] = static_cast<float>(t.centre_W[k]);
+      o.half_axes[k] = static_cast<float>(t.half_axes_m[k]);
+      o.velocity[k] = static_cast<float>(t.velocity_W_mps[k]);
+      o.spread[k] = static_cast<float>(std::sqrt(std::max(0.0, t.centre_covariance_m2(k, k))));
+    }
+    o.occluded = t.occluded;
+    o.occluded_fraction = static_cast<float>(t.occluded_fraction);
+    o.age_s = static_cast<float>(t.age_s);
+    o.time_since_support_s = static_cast<float>(t.time_since_support_s);
+  }
+  if (tracks_writer_.Write(&out) < 0) {
+    tracks_write_failures_.fetch_add(1, std::memory_order_relaxed);
+  }
 }
 
 }  // namespace hg::publish

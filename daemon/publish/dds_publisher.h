@@ -2,16 +2,20 @@
 /// @file
 /// Publishes each OccupancySnapshot over Cyclone DDS as two keyless topics,
 /// "<prefix>/occupancy" (hullguard::Occupancy) and "<prefix>/status"
-/// (hullguard::Status), with QoS that lets a controller tell a live stream
+/// (hullguard::Status), and the tracked people of a cycle as "<prefix>/tracks"
+/// (hullguard::Tracks), with QoS that lets a controller tell a live stream
 /// from a stale one (deadline and liveliness). See docs/dds.md.
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <span>
 #include <string>
 
 #include "pipeline/snapshot.h"
 #include "publish/dds.h"
+#include "tracking/tracker.h"
 
 namespace hg::publish {
 
@@ -20,11 +24,15 @@ struct PublisherConfig {
   int domain_id = 0;
   std::string topic_prefix = "hullguard";
   bool enabled = true;  ///< False: Publish() does nothing.
+  /// Creates the tracks topic and writer (the daemon's tracking.enabled);
+  /// false: PublishTracks() does nothing.
+  bool tracks = true;
 };
 
 /// Topic names for a prefix ("hullguard" -> "hullguard/occupancy").
 [[nodiscard]] std::string OccupancyTopicName(const std::string& prefix);
 [[nodiscard]] std::string StatusTopicName(const std::string& prefix);
+[[nodiscard]] std::string TracksTopicName(const std::string& prefix);
 
 /// The deadline the writers offer at a fusion rate: two cycles. A reader must
 /// request a period at least this long to match.
@@ -39,27 +47,32 @@ struct PublisherConfig {
 /// OfferedDeadline, automatic liveliness with OfferedLease.
 [[nodiscard]] dds::Qos OccupancyWriterQos(double rate_hz);
 [[nodiscard]] dds::Qos StatusWriterQos(double rate_hz);
+/// Tracks: as status (reliable, never blocking the caller).
+[[nodiscard]] dds::Qos TracksWriterQos(double rate_hz);
 
 /// Reader QoS matching the writers, requesting `deadline` (must be >= the
 /// writer's OfferedDeadline to match). Occupancy: best effort; status:
 /// reliable. Liveliness is left at automatic/infinite, which matches any lease.
 [[nodiscard]] dds::Qos OccupancyReaderQos(std::chrono::nanoseconds deadline);
 [[nodiscard]] dds::Qos StatusReaderQos(std::chrono::nanoseconds deadline);
+[[nodiscard]] dds::Qos TracksReaderQos(std::chrono::nanoseconds deadline);
 
-/// Writes both topics for each snapshot.
+/// Writes occupancy and status for each snapshot, and tracks for each tracked cycle.
 ///
 /// Sample buffers are owned and reused: after the first snapshots have grown
 /// them to the largest cell and camera counts seen, Publish allocates nothing
 /// itself (camera names point into the snapshot). Cyclone DDS still allocates
 /// a serialized copy of each sample inside dds_write (see docs/dds.md).
 ///
-/// Single-thread: call Publish from one thread (the fusion thread).
+/// Thread safety: Publish from one thread (the fusion thread) and
+/// PublishTracks from one thread (the tracking thread; may be another): the two
+/// share only the participant, which Cyclone DDS makes thread-safe.
 class DdsPublisher {
  public:
-  /// Creates the participant on `config.domain_id`, the two topics under
+  /// Creates the participant on `config.domain_id`, the three topics under
   /// `config.topic_prefix`, and their writers, with QoS derived from the
   /// fusion rate `rate_hz` (> 0). When `config.enabled` is false nothing is
-  /// created and Publish does nothing.
+  /// created and Publish and PublishTracks do nothing.
   /// @throws dds::Error when Cyclone DDS refuses (bad domain, bad topic name,
   /// bad CYCLONEDDS_URI); std::invalid_argument when rate_hz <= 0.
   DdsPublisher(const PublisherConfig& config, double rate_hz);
@@ -71,28 +84,46 @@ class DdsPublisher {
   /// blocks on slow readers: a failed write is counted in write_failures().
   void Publish(const pipeline::OccupancySnapshot& snapshot);
 
+  /// Writes one Tracks sample: the tracks of the occupancy cycle `sequence`
+  /// (stamp and degraded flag of that cycle). Never throws and never blocks;
+  /// after the buffer has grown to the largest track count seen it allocates
+  /// nothing itself. A failed write is counted in tracks_write_failures().
+  void PublishTracks(std::uint64_t sequence, std::int64_t stamp_ns, bool degraded,
+                     std::span<const tracking::Track> tracks);
+
   /// Writes refused by Cyclone DDS since construction (a runtime fault, to be
   /// reported in the daemon's status).
   [[nodiscard]] std::uint64_t write_failures() const { return write_failures_; }
+  /// Tracks writes refused since construction. Thread-safe.
+  [[nodiscard]] std::uint64_t tracks_write_failures() const {
+    return tracks_write_failures_.load(std::memory_order_relaxed);
+  }
 
   [[nodiscard]] bool enabled() const { return enabled_; }
   [[nodiscard]] const std::string& occupancy_topic() const { return occupancy_topic_; }
   [[nodiscard]] const std::string& status_topic() const { return status_topic_; }
+  [[nodiscard]] const std::string& tracks_topic() const { return tracks_topic_; }
 
  private:
-  struct Samples;  // idlc-generated samples and their reused buffers.
+  struct Samples;        // idlc-generated samples and their reused buffers.
+  struct TracksSamples;  // The same for PublishTracks (its own thread).
 
   bool enabled_;
   std::string occupancy_topic_;
   std::string status_topic_;
+  std::string tracks_topic_;
   // The participant is declared first so it is deleted last (after its children).
   dds::Participant participant_;
   dds::Topic occupancy_topic_entity_;
   dds::Topic status_topic_entity_;
+  dds::Topic tracks_topic_entity_;
   dds::Writer occupancy_writer_;
   dds::Writer status_writer_;
+  dds::Writer tracks_writer_;
   std::unique_ptr<Samples> samples_;
+  std::unique_ptr<TracksSamples> tracks_samples_;
   std::uint64_t write_failures_ = 0;
+  std::atomic<std::uint64_t> tracks_write_failures_{0};
 };
 
 }  // namespace hg::publish

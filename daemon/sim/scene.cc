@@ -330,7 +330,7 @@ class SceneParser {
       top.Fail("expected a map with the key 'scene' (see docs/scenes.md)");
     }
     const MapValue map = top.Map({"scene", "cameras", "capture_offsets_ms", "obstacles",
-                                  "foreground_objects", "people", "imaging", "masks"});
+                                  "foreground_objects", "people", "imaging", "masks", "mounting"});
     Scene scene;
     ParseHeader(map.Get("scene"), &scene);
     if (const std::optional<Value> cameras = map.Find("cameras")) {
@@ -367,6 +367,9 @@ class SceneParser {
     }
     if (const std::optional<Value> imaging = map.Find("imaging")) {
       scene.imaging = ParseImaging(*imaging);
+    }
+    if (const std::optional<Value> mounting = map.Find("mounting")) {
+      scene.mounting = ParseMounting(*mounting);
     }
     if (const std::optional<Value> masks = map.Find("masks")) {
       const MapValue masks_map = masks->Map({"occlusion"});
@@ -595,6 +598,64 @@ class SceneParser {
     }
     *end_s = action.start_s + action.duration_s;
     return action;
+  }
+
+  /// The `mounting` list; an empty list is allowed (a cell with no place for
+  /// a camera), so that camera placement can say so.
+  static std::vector<MountingSurface> ParseMounting(const Value& value) {
+    std::vector<MountingSurface> surfaces;
+    std::map<std::string, int> first_line;
+    for (const Value& entry : value.List()) {
+      const MapValue map = entry.Map({"name", "wall", "ceiling", "pole"});
+      MountingSurface surface;
+      const Value& name = map.Get("name");
+      surface.name = name.String();
+      const auto [it, inserted] = first_line.emplace(surface.name, name.line());
+      if (!inserted) {
+        name.Fail("duplicate mounting surface name '" + surface.name + "' (first at line " +
+                  std::to_string(it->second) + ")");
+      }
+      const std::string kind = map.OneOf({"wall", "ceiling", "pole"});
+      const Value& body = map.Get(kind);
+      if (kind == "wall") {
+        const MapValue m = body.Map({"from", "to", "z"});
+        const std::vector<double> from = m.Get("from").Numbers(2, 2);
+        const std::vector<double> to = m.Get("to").Numbers(2, 2);
+        if (from == to) m.Get("to").Fail("must differ from 'from'");
+        const auto [z0, z1] = ZRange(m.Get("z"));
+        surface.kind = MountingSurface::Kind::kWall;
+        surface.origin_W = Eigen::Vector3d(from[0], from[1], z0);
+        surface.u_W = Eigen::Vector3d(to[0] - from[0], to[1] - from[1], 0.0);
+        surface.v_W = Eigen::Vector3d(0.0, 0.0, z1 - z0);
+      } else if (kind == "ceiling") {
+        const MapValue m = body.Map({"min", "max", "z"});
+        const std::vector<double> min = m.Get("min").Numbers(2, 2);
+        const std::vector<double> max = m.Get("max").Numbers(2, 2);
+        if (!(max[0] > min[0] && max[1] > min[1])) {
+          m.Get("max").Fail("must be greater than min on both axes");
+        }
+        surface.kind = MountingSurface::Kind::kCeiling;
+        surface.origin_W = Eigen::Vector3d(min[0], min[1], m.Get("z").Number());
+        surface.u_W = Eigen::Vector3d(max[0] - min[0], 0.0, 0.0);
+        surface.v_W = Eigen::Vector3d(0.0, max[1] - min[1], 0.0);
+      } else {
+        const MapValue m = body.Map({"at", "z"});
+        const std::vector<double> at = m.Get("at").Numbers(2, 2);
+        const auto [z0, z1] = ZRange(m.Get("z"));
+        surface.kind = MountingSurface::Kind::kPole;
+        surface.origin_W = Eigen::Vector3d(at[0], at[1], z0);
+        surface.u_W = Eigen::Vector3d(0.0, 0.0, z1 - z0);
+      }
+      surfaces.push_back(std::move(surface));
+    }
+    return surfaces;
+  }
+
+  /// [z_low, z_high] with z_high > z_low.
+  static std::pair<double, double> ZRange(const Value& value) {
+    const std::vector<double> z = value.Numbers(2, 2);
+    if (!(z[1] > z[0])) value.Fail("expected [low, high] with high > low");
+    return {z[0], z[1]};
   }
 
   static ImagingSettings ParseImaging(const Value& value) {

@@ -4,6 +4,7 @@
 /// objects, people with scripts, lighting and sensor settings. Loaded from the
 /// scene YAML format documented in docs/scenes.md.
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,26 @@ struct SceneCamera {
   double time_offset_s = 0.0;  ///< This camera captures at t + time_offset_s.
 };
 
+/// A surface cameras may be mounted on (the scene's `mounting` section, used by
+/// camera placement): the rectangle origin_W + s u_W + t v_W with s, t in
+/// [0, 1], or for a pole the segment origin_W + s u_W. Value type.
+struct MountingSurface {
+  enum class Kind { kWall, kCeiling, kPole };
+  std::string name;
+  Kind kind = Kind::kWall;
+  Eigen::Vector3d origin_W = Eigen::Vector3d::Zero();
+  Eigen::Vector3d u_W = Eigen::Vector3d::Zero();  ///< First edge; a pole's axis (m).
+  Eigen::Vector3d v_W = Eigen::Vector3d::Zero();  ///< Second edge; zero for a pole (m).
+
+  /// Number of free coordinates of a point on the surface: 2, or 1 for a pole.
+  [[nodiscard]] int Dimensions() const { return kind == Kind::kPole ? 1 : 2; }
+  /// The point at (s, t); t is ignored for a pole.
+  [[nodiscard]] Eigen::Vector3d PointAt(double s, double t) const {
+    if (kind == Kind::kPole) return origin_W + s * u_W;
+    return origin_W + s * u_W + t * v_W;
+  }
+};
+
 struct Scene {
   std::string name;
   std::string source_file;  ///< Path the scene was loaded from (empty if built in code).
@@ -44,6 +65,10 @@ struct Scene {
   std::vector<Person> people;
   ImagingSettings imaging;
   bool mask_occlusion = true;  ///< Ground-truth masks leave out what obstacles hide.
+  /// Where cameras may be mounted: nullopt when the file has no `mounting`
+  /// section (camera placement then uses its documented default), an empty
+  /// list when it says there is no such place (`mounting: []`).
+  std::optional<std::vector<MountingSurface>> mounting;
 
   /// The calibrated camera models, in order.
   [[nodiscard]] std::vector<geometry::CameraModel> CameraModels() const;

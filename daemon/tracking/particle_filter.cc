@@ -108,14 +108,20 @@ void ParticleFilter::Step(double dt_s, const VoxelMap& map, const LikelihoodWeig
   }
 
   // 3. Weigh.
-  double total = 0.0;
+  double best = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const double score = Score(CountVoxels(map, particles_[i], own_region), w);
     weights_[i] = std::max(score, 0.0);
-    total += weights_[i];
+    best = std::max(best, weights_[i]);
   }
-  estimate_.weighted = total > 0.0;
+  estimate_.weighted = best > 0.0;
   if (estimate_.weighted) {
+    double total = 0.0;
+    const double p = options_.weight_exponent;
+    for (double& x : weights_) {
+      x = p == 1.0 ? x / best : std::pow(x / best, p);
+      total += x;
+    }
     for (double& x : weights_) x /= total;
   } else {
     std::fill(weights_.begin(), weights_.end(), 1.0 / static_cast<double>(n));

@@ -51,6 +51,14 @@ struct ParticleFilterOptions {
   /// Radius of the capsule swept between a particle's previous and predicted
   /// centre; it must not touch an obstacle. Not larger than any half-axis.
   double collision_radius_m = 0.2;
+  /// Sharpness of the weights: w_i = (max(Score_i, 0) / max_j Score_j)^p. The
+  /// paper's weights are the scores themselves (p = 1); a particle's score
+  /// then barely drops when its ellipsoid grows past the person (each extra
+  /// free voxel costs a tenth of what a missed person voxel costs), so the
+  /// estimate is too large, and next to an obstacle the person stands on
+  /// (whose voxels cost much more) its centre is pushed away. A larger p
+  /// makes a few per cent of score a clear preference.
+  double weight_exponent = 8.0;
   /// Spread of the particles around the initial ellipsoid (standard deviations).
   double init_position_spread_m = 0.08;
   double init_axis_spread_m = 0.04;
@@ -86,9 +94,9 @@ class ParticleFilter {
   ///    collision_radius_m) touches an obstacle of `world` is replaced by a
   ///    copy of a uniformly drawn collision-free particle; when all collide,
   ///    every particle keeps its previous state;
-  /// 3. weigh: w_i = max(Score_i, 0) / sum_j max(Score_j, 0) (uniform when no
-  ///    particle scores above zero), Score over CountVoxels(map, particle,
-  ///    own_region);
+  /// 3. weigh: w_i proportional to (max(Score_i, 0) / max_j Score_j)^p with
+  ///    p = weight_exponent (uniform when no particle scores above zero),
+  ///    Score over CountVoxels(map, particle, own_region);
   /// 4. estimate: weighted means, centre covariance, velocity low-pass;
   /// 5. resample (systematic).
   void Step(double dt_s, const VoxelMap& map, const LikelihoodWeights& weights,

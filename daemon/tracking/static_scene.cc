@@ -285,35 +285,64 @@ std::vector<common::Box3> MergeIntoBoxes(const VoxelGrid& g,
   return boxes;
 }
 
+namespace {
+
+/// Calls seen(i) for every voxel i whose centre the camera sees: in front of
+/// it, projecting into the image, and not behind the obstacle surface seen
+/// through that pixel. skip(i) true: the voxel is not tested.
+template <typename Skip, typename Seen>
+void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
+                      const std::vector<geometry::TriangleMesh>& occluders, Skip skip, Seen seen) {
+  const geometry::CameraModel pinhole = camera.Pinhole();
+  const geometry::ObstacleDepthMap depth = geometry::RenderObstacleDepth(pinhole, occluders);
+  const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
+  for (int z = 0; z < g.nz(); ++z) {
+    for (int y = 0; y < g.ny(); ++y) {
+      Vector3d p_C = pinhole.ToCamera(g.Centre(0, y, z));
+      for (int x = 0; x < g.nx(); ++x, p_C += step) {
+        const std::uint32_t i = g.Index(x, y, z);
+        if (skip(i) || p_C.z() <= 0.0) continue;
+        const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
+        const double u = std::floor(uv.x() + 0.5);
+        const double w = std::floor(uv.y() + 0.5);
+        if (!(u >= 0.0 && w >= 0.0 && u < depth.width && w < depth.height)) continue;
+        const std::size_t pixel =
+            static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
+        if (p_C.z() <= depth.centre_depth[pixel]) seen(i);
+      }
+    }
+  }
+}
+
+}  // namespace
+
 void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& cameras,
                   const std::vector<geometry::TriangleMesh>& occluders,
                   std::vector<VoxelState>* states) {
   HG_CHECK(states->size() == g.size());
   std::vector<std::uint8_t> seen(g.size(), 0);
   for (const geometry::CameraModel& camera : cameras) {
-    const geometry::CameraModel pinhole = camera.Pinhole();
-    const geometry::ObstacleDepthMap depth = geometry::RenderObstacleDepth(pinhole, occluders);
-    const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
-    for (int z = 0; z < g.nz(); ++z) {
-      for (int y = 0; y < g.ny(); ++y) {
-        Vector3d p_C = pinhole.ToCamera(g.Centre(0, y, z));
-        for (int x = 0; x < g.nx(); ++x, p_C += step) {
-          const std::uint32_t i = g.Index(x, y, z);
-          if (seen[i] != 0 || p_C.z() <= 0.0) continue;
-          const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
-          const double u = std::floor(uv.x() + 0.5);
-          const double w = std::floor(uv.y() + 0.5);
-          if (!(u >= 0.0 && w >= 0.0 && u < depth.width && w < depth.height)) continue;
-          const std::size_t pixel =
-              static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
-          if (p_C.z() <= depth.centre_depth[pixel]) seen[i] = 1;
-        }
-      }
-    }
+    ForEachSeenVoxel(
+        g, camera, occluders, [&](std::uint32_t i) { return seen[i] != 0; },
+        [&](std::uint32_t i) { seen[i] = 1; });
   }
   for (std::size_t i = 0; i < g.size(); ++i) {
     if ((*states)[i] != VoxelState::kKnown && seen[i] == 0) (*states)[i] = VoxelState::kOccluded;
   }
+}
+
+std::vector<std::uint16_t> CameraViews(const VoxelGrid& g,
+                                       const std::vector<geometry::CameraModel>& cameras,
+                                       const std::vector<geometry::TriangleMesh>& occluders) {
+  std::vector<std::uint16_t> views(g.size(), 0);
+  const int n = std::min(static_cast<int>(cameras.size()), kMaxViewCameras);
+  for (int c = 0; c < n; ++c) {
+    const auto bit = static_cast<std::uint16_t>(1U << c);
+    ForEachSeenVoxel(
+        g, cameras[c], occluders, [](std::uint32_t) { return false; },
+        [&](std::uint32_t i) { views[i] |= bit; });
+  }
+  return views;
 }
 
 StaticVoxels BuildStaticVoxels(const VoxelGrid& g, const StaticScene& scene) {
@@ -335,7 +364,17 @@ StaticVoxels BuildStaticVoxels(const VoxelGrid& g, const StaticScene& scene) {
   for (std::size_t i = 0; i < g.size(); ++i) {
     if (known[i] != 0 || mesh_known[i] != 0) out.states[i] = VoxelState::kKnown;
   }
-  MarkOccluded(g, scene.cameras, occluders, &out.states);
+  if (!scene.cameras.empty()) out.views = CameraViews(g, scene.cameras, occluders);
+  if (scene.cameras.size() <= static_cast<std::size_t>(kMaxViewCameras) && !scene.cameras.empty()) {
+    // The views already say which voxels some camera sees.
+    for (std::size_t i = 0; i < g.size(); ++i) {
+      if (out.states[i] != VoxelState::kKnown && out.views[i] == 0) {
+        out.states[i] = VoxelState::kOccluded;
+      }
+    }
+  } else {
+    MarkOccluded(g, scene.cameras, occluders, &out.states);
+  }
   out.mesh_boxes = MergeIntoBoxes(g, mesh_known);
   return out;
 }

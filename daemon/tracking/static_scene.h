@@ -25,10 +25,16 @@ struct StaticScene {
   std::vector<sim::SolidGeometry> solids;
 };
 
+/// Cameras whose views BuildStaticVoxels records per voxel (the octree's limit too).
+inline constexpr int kMaxViewCameras = 16;
+
 /// Static labels of every voxel and the boxes that cover the mesh obstacles.
 struct StaticVoxels {
   std::vector<VoxelState> states;        ///< Per voxel: kFree, kOccluded or kKnown.
   std::vector<common::Box3> mesh_boxes;  ///< Cover the KNOWN voxels of the meshes.
+  /// Per voxel: bit c set when camera c (c < kMaxViewCameras) sees its centre,
+  /// as MarkOccluded decides it. Empty when there are no cameras.
+  std::vector<std::uint16_t> views;
 };
 
 /// Sets mask[i] = 1 for every voxel of the mesh obstacle: voxels whose closed
@@ -64,8 +70,15 @@ void MarkOccluded(const VoxelGrid& grid, const std::vector<geometry::CameraModel
                   const std::vector<geometry::TriangleMesh>& occluders,
                   std::vector<VoxelState>* states);
 
+/// Per voxel, bit c set when camera c (c < kMaxViewCameras; later cameras are
+/// left out) sees the voxel's centre, by MarkOccluded's rule.
+[[nodiscard]] std::vector<std::uint16_t> CameraViews(
+    const VoxelGrid& grid, const std::vector<geometry::CameraModel>& cameras,
+    const std::vector<geometry::TriangleMesh>& occluders);
+
 /// KNOWN from every obstacle, OCCLUDED from the cameras (analytic solids hide
-/// what their circumscribing tessellation hides), and the mesh boxes.
+/// what their circumscribing tessellation hides), the cameras' views, and the
+/// mesh boxes.
 /// Cost: one depth map per camera plus one projection per voxel and camera.
 [[nodiscard]] StaticVoxels BuildStaticVoxels(const VoxelGrid& grid, const StaticScene& scene);
 

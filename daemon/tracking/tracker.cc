@@ -1,6 +1,7 @@
 #include "tracking/tracker.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -28,15 +29,30 @@ void ThrowIfBad(const TrackerOptions& options) {
   throw common::ConfigError(message);
 }
 
-std::pair<VoxelMap, CollisionWorld> BuildStatic(const TrackerOptions& options,
-                                                const common::Box3& bounds,
-                                                const StaticScene& scene) {
+}  // namespace
+
+struct Tracker::Built {
+  VoxelMap map;
+  CollisionWorld world;
+  std::vector<std::uint16_t> views;
+  std::vector<Vector3d> camera_centres_W;
+};
+
+Tracker::Built Tracker::BuildStatic(const TrackerOptions& options, const common::Box3& bounds,
+                                    const StaticScene& scene) {
   ThrowIfBad(options);
   const VoxelGrid grid(bounds, options.voxel_m);
   StaticVoxels voxels = BuildStaticVoxels(grid, scene);
   std::vector<CollisionShape> shapes = CollisionShapes(scene, voxels);
-  return {VoxelMap(grid, std::move(voxels.states)), CollisionWorld(std::move(shapes))};
+  std::vector<Vector3d> centres;
+  for (std::size_t c = 0; c < scene.cameras.size() && c < kMaxViewCameras; ++c) {
+    centres.push_back(scene.cameras[c].CentreW());
+  }
+  return {VoxelMap(grid, std::move(voxels.states)), CollisionWorld(std::move(shapes)),
+          std::move(voxels.views), std::move(centres)};
 }
+
+namespace {
 
 /// Distinct seeds per track from one option (splitmix64 finaliser).
 std::uint64_t MixSeed(std::uint64_t seed, std::uint32_t id) {
@@ -45,6 +61,15 @@ std::uint64_t MixSeed(std::uint64_t seed, std::uint32_t id) {
   z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
   return z ^ (z >> 31);
 }
+
+// Marks of this cycle's UNKNOWN voxels during the birth search: inside a
+// gate or not, reached by the component search, and whether the column below
+// stands on something (kGroundedMark valid once kResolvedMark is set).
+constexpr std::uint8_t kExplainedMark = 1;
+constexpr std::uint8_t kUnexplainedMark = 2;
+constexpr std::uint8_t kVisitedMark = 4;
+constexpr std::uint8_t kResolvedMark = 8;
+constexpr std::uint8_t kGroundedMark = 16;
 
 bool Overlap(const common::Box3& a, const common::Box3& b, double margin) {
   return (a.min.array() - margin <= b.max.array()).all() &&
@@ -81,6 +106,8 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
           "must hold the smallest ellipsoid of the half-axis ranges", &p);
   Require(f.velocity_gain >= 0.0 && f.velocity_gain <= 1.0, "filter.velocity_gain",
           "must be in [0, 1]", &p);
+  Require(f.weight_exponent >= 1.0 && f.weight_exponent <= 64.0, "filter.weight_exponent",
+          "must be in [1, 64]", &p);
   Require(f.max_speed_mps > 0.0 && Finite(f.max_speed_mps), "filter.max_speed_mps", "must be > 0",
           &p);
   Require(f.collision_radius_m >= 0.0 &&
@@ -95,6 +122,10 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
           "must be > 0", &p);
   Require(o.birth_gate_margin_m >= 0.0 && Finite(o.birth_gate_margin_m), "birth_gate_margin_m",
           "must be >= 0", &p);
+  Require(Finite(o.birth_max_floating_m), "birth_max_floating_m", "must be finite", &p);
+  Require(Finite(o.explain_margin_m), "explain_margin_m", "must be finite", &p);
+  Require(o.birth_min_views >= 0 && o.birth_min_views <= kMaxViewCameras, "birth_min_views",
+          "must be in [0, 16]", &p);
   Require(o.reacquire_radius_m >= 0.0 && Finite(o.reacquire_radius_m), "reacquire_radius_m",
           "must be >= 0", &p);
   Require(o.reacquire_speed_mps >= 0.0 && Finite(o.reacquire_speed_mps), "reacquire_speed_mps",
@@ -103,10 +134,15 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
           "support_min_volume_m3", "must be >= 0", &p);
   Require(o.death_timeout_s > 0.0, "death_timeout_s", "must be > 0", &p);
   Require(o.occluded_death_timeout_s > 0.0, "occluded_death_timeout_s", "must be > 0", &p);
+  Require(o.tentative_age_s >= 0.0 && Finite(o.tentative_age_s), "tentative_age_s", "must be >= 0",
+          &p);
+  Require(o.tentative_death_timeout_s > 0.0, "tentative_death_timeout_s", "must be > 0", &p);
   Require(o.occluded_min_share > 0.0 && o.occluded_min_share <= 1.0, "occluded_min_share",
           "must be in (0, 1]", &p);
   Require(o.overlap_margin_m >= 0.0 && Finite(o.overlap_margin_m), "overlap_margin_m",
           "must be >= 0", &p);
+  Require(o.birth_view_margin_voxels >= 0 && o.birth_view_margin_voxels <= 8,
+          "birth_view_margin_voxels", "must be in [0, 8]", &p);
   Require(o.first_dt_s > 0.0 && Finite(o.first_dt_s), "first_dt_s", "must be > 0", &p);
   Require(o.max_dt_s >= 1e-3 && Finite(o.max_dt_s), "max_dt_s", "must be >= 0.001", &p);
   return p;
@@ -116,13 +152,46 @@ Tracker::Tracker(const TrackerOptions& options, const common::Box3& bounds,
                  const StaticScene& scene)
     : Tracker(options, BuildStatic(options, bounds, scene)) {}
 
-Tracker::Tracker(const TrackerOptions& options, std::pair<VoxelMap, CollisionWorld>&& built)
-    : Tracker(options, std::move(built.first), std::move(built.second)) {}
+Tracker::Tracker(const TrackerOptions& options, Built&& built)
+    : Tracker(options, std::move(built.map), std::move(built.world)) {
+  views_ = std::move(built.views);
+  ErodeViews();
+  camera_centres_W_ = std::move(built.camera_centres_W);
+  sight_tests_.resize(camera_centres_W_.size() * static_cast<std::size_t>(options_.max_tracks));
+}
 
 Tracker::Tracker(const TrackerOptions& options, VoxelMap map, CollisionWorld world)
     : options_(options), map_(std::move(map)), world_(std::move(world)) {
   ThrowIfBad(options_);
   Init();
+}
+
+void Tracker::ErodeViews() {
+  const int r = options_.birth_view_margin_voxels;
+  if (views_.empty() || r <= 0) return;
+  const VoxelGrid& g = map_.grid();
+  // A box erosion of every camera's bit at once, separable: along x, y, z.
+  // Outside the grid counts as seen (the grid's faces are the cell's).
+  std::vector<std::uint16_t> line;
+  auto erode = [&](int n, auto index_of, int lines_a, int lines_b) {
+    line.resize(static_cast<std::size_t>(n));
+    for (int b = 0; b < lines_b; ++b) {
+      for (int a = 0; a < lines_a; ++a) {
+        for (int k = 0; k < n; ++k) line[k] = views_[index_of(k, a, b)];
+        for (int k = 0; k < n; ++k) {
+          std::uint16_t v = 0xFFFF;
+          for (int j = std::max(0, k - r); j <= std::min(n - 1, k + r); ++j) v &= line[j];
+          views_[index_of(k, a, b)] = v;
+        }
+      }
+    }
+  };
+  erode(
+      g.nx(), [&](int k, int a, int b) { return g.Index(k, a, b); }, g.ny(), g.nz());
+  erode(
+      g.ny(), [&](int k, int a, int b) { return g.Index(a, k, b); }, g.nx(), g.nz());
+  erode(
+      g.nz(), [&](int k, int a, int b) { return g.Index(a, b, k); }, g.nx(), g.ny());
 }
 
 void Tracker::Init() {
@@ -135,6 +204,7 @@ void Tracker::Init() {
   tracks_.reserve(options_.max_tracks);
   marks_.assign(map_.grid().size(), 0);
   queue_.reserve(map_.grid().size());
+  path_.reserve(map_.grid().nz());
   for (int dz = -1; dz <= 1; ++dz) {
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
@@ -183,7 +253,9 @@ void Tracker::Step(std::int64_t stamp_ns) {
     s.filter->Step(dt, map_, options_.likelihood, world_, s.region);
     Assess(&s, dt);
     const double timeout =
-        s.occluded ? options_.occluded_death_timeout_s : options_.death_timeout_s;
+        s.age_s < options_.tentative_age_s
+            ? options_.tentative_death_timeout_s
+            : (s.occluded ? options_.occluded_death_timeout_s : options_.death_timeout_s);
     const Ellipsoid& e = s.filter->estimate().ellipsoid;
     const bool left = ((e.centre_W + e.half_axes_m).array() < covered.min.array()).any() ||
                       ((e.centre_W - e.half_axes_m).array() > covered.max.array()).any();
@@ -232,48 +304,149 @@ void Tracker::Births() {
   // Every UNKNOWN voxel once against the gates. When the unexplained voxels
   // together are less than a person (the common case: everybody is tracked),
   // no component can start a track and the search is skipped.
-  constexpr std::uint8_t kExplained = 1, kUnexplained = 2, kVisited = 4;
   int unexplained_total = 0;
   for (const std::uint32_t i : unknown) {
     const Eigen::Vector3i c = g.Coords(i);
     const bool explained = Explained(g.Centre(c.x(), c.y(), c.z()));
-    marks_[i] = explained ? kExplained : kUnexplained;
+    marks_[i] = explained ? kExplainedMark : kUnexplainedMark;
     unexplained_total += explained ? 0 : 1;
   }
   if (unexplained_total * vv >= options_.birth_min_volume_m3) {
+    PrepareSightTests();
     for (const std::uint32_t seed : unknown) {
-      if (marks_[seed] != kUnexplained) continue;  // Explained, or visited already.
+      // Explained, or visited already.
+      if ((marks_[seed] & (kUnexplainedMark | kVisitedMark)) != kUnexplainedMark) continue;
       // One component: breadth-first from the seed through UNKNOWN neighbours.
       queue_.clear();
       queue_.push_back(seed);
-      marks_[seed] |= kVisited;
+      marks_[seed] |= kVisitedMark;
       int unexplained = 0;
-      Vector3d sum = Vector3d::Zero();
-      Vector3d sum_sq = Vector3d::Zero();
       for (std::size_t head = 0; head < queue_.size(); ++head) {
         const std::uint32_t i = queue_[head];
         const Eigen::Vector3i c = g.Coords(i);
-        if ((marks_[i] & kUnexplained) != 0) {
-          const Vector3d p = g.Centre(c.x(), c.y(), c.z());
-          ++unexplained;
-          sum += p;
-          sum_sq += p.cwiseProduct(p);
-        }
+        unexplained += (marks_[i] & kUnexplainedMark) != 0 ? 1 : 0;
         for (const Eigen::Vector3i& d : neighbours_) {
           const Eigen::Vector3i q = c + d;
           if (!g.InGrid(q.x(), q.y(), q.z())) continue;
           const std::uint32_t qi = g.Index(q.x(), q.y(), q.z());
           // Marked and not visited: an UNKNOWN voxel of this cycle.
-          if (marks_[qi] != 0 && (marks_[qi] & kVisited) == 0) {
-            marks_[qi] |= kVisited;
+          if (marks_[qi] != 0 && (marks_[qi] & kVisitedMark) == 0) {
+            marks_[qi] |= kVisitedMark;
             queue_.push_back(qi);
           }
         }
       }
-      StartOrReacquire(unexplained, sum, sum_sq);
+      if (unexplained * vv < options_.birth_min_volume_m3) continue;
+      // The component's evidence of a new person: unexplained voxels that the
+      // cameras see past every track; some of them must stand on something.
+      int evidence = 0;
+      bool grounded = false;
+      Vector3d sum = Vector3d::Zero();
+      Vector3d sum_sq = Vector3d::Zero();
+      for (const std::uint32_t i : queue_) {
+        if ((marks_[i] & kUnexplainedMark) == 0) continue;
+        const Eigen::Vector3i c = g.Coords(i);
+        const Vector3d p = g.Centre(c.x(), c.y(), c.z());
+        if (!SeenPastTracks(i, p)) continue;
+        ++evidence;
+        sum += p;
+        sum_sq += p.cwiseProduct(p);
+        grounded = grounded || Grounded(i);
+      }
+      if (grounded) StartOrReacquire(evidence, sum, sum_sq);
     }
   }
   for (const std::uint32_t i : unknown) marks_[i] = 0;
+}
+
+bool Tracker::Grounded(std::uint32_t index) {
+  if (options_.birth_max_floating_m < 0.0) return true;
+  if ((marks_[index] & kResolvedMark) != 0) return (marks_[index] & kGroundedMark) != 0;
+  const VoxelGrid& g = map_.grid();
+  const std::uint32_t layer =
+      static_cast<std::uint32_t>(g.nx()) * static_cast<std::uint32_t>(g.ny());
+  const int max_free = static_cast<int>(std::floor(options_.birth_max_floating_m / g.voxel_m()));
+  // Down the column until the answer is known; every unexplained voxel passed
+  // on the way shares it.
+  path_.clear();
+  path_.push_back(index);
+  bool grounded = true;  // Reaching the bottom: the floor.
+  int free = 0;          // FREE voxels in the current gap.
+  std::uint32_t i = index;
+  for (int z = g.Coords(index).z() - 1; z >= 0; --z) {
+    i -= layer;
+    const std::uint8_t m = marks_[i];
+    if (m != 0) {  // UNKNOWN this cycle.
+      if ((m & kUnexplainedMark) == 0) {
+        grounded = false;  // On a tracked person: not standing.
+        break;
+      }
+      if ((m & kResolvedMark) != 0) {
+        grounded = (m & kGroundedMark) != 0;
+        break;
+      }
+      path_.push_back(i);
+      free = 0;
+      continue;
+    }
+    const VoxelState state = map_.StaticState(i);
+    if (state == VoxelState::kKnown) break;  // On an obstacle.
+    if (state == VoxelState::kOccluded) {    // Legs may be where no camera sees.
+      free = 0;
+      continue;
+    }
+    if (++free > max_free) {
+      grounded = false;
+      break;
+    }
+  }
+  const std::uint8_t bits = kResolvedMark | (grounded ? kGroundedMark : 0);
+  for (const std::uint32_t p : path_) marks_[p] |= bits;
+  return grounded;
+}
+
+void Tracker::PrepareSightTests() {
+  sight_tracks_ = 0;
+  if (views_.empty() || options_.explain_margin_m < 0.0) return;
+  const int cameras = static_cast<int>(camera_centres_W_.size());
+  int n = 0;
+  for (const Slot& s : slots_) {
+    if (!s.alive || s.time_since_support_s > 0.0) continue;
+    const Ellipsoid& e = s.filter->estimate().ellipsoid;
+    const Vector3d inv_half =
+        (e.half_axes_m + Vector3d::Constant(options_.explain_margin_m)).cwiseInverse();
+    for (int c = 0; c < cameras; ++c) {
+      SightTest& t = sight_tests_[static_cast<std::size_t>(c) * options_.max_tracks + n];
+      t.centre_W = e.centre_W;
+      t.inv_half_axes = inv_half;
+      t.camera_S = (camera_centres_W_[c] - e.centre_W).cwiseProduct(inv_half);
+      t.camera_norm2_minus_1 = t.camera_S.squaredNorm() - 1.0;
+    }
+    ++n;
+  }
+  sight_tracks_ = n;
+}
+
+bool Tracker::SeenPastTracks(std::uint32_t index, const Vector3d& p_W) const {
+  if (views_.empty() || options_.explain_margin_m < 0.0) return true;
+  std::uint32_t mask = views_[index];
+  if (std::popcount(mask) < std::max(options_.birth_min_views, 1)) return false;
+  while (mask != 0) {
+    const int c = std::countr_zero(mask);
+    mask &= mask - 1;
+    const SightTest* t = sight_tests_.data() + static_cast<std::size_t>(c) * options_.max_tracks;
+    for (int k = 0; k < sight_tracks_; ++k, ++t) {
+      // The half-line from the camera through p, in the frame where the
+      // grown ellipsoid is the unit sphere: camera + s d, s >= 0, meets the
+      // sphere iff |camera + s d|^2 = 1 has a root s >= 0.
+      const Vector3d d = (p_W - t->centre_W).cwiseProduct(t->inv_half_axes) - t->camera_S;
+      const double a = d.squaredNorm();
+      const double b = t->camera_S.dot(d);
+      const double c0 = t->camera_norm2_minus_1;
+      if (b * b >= a * c0 && (b <= 0.0 || c0 <= 0.0)) return false;
+    }
+  }
+  return true;
 }
 
 void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vector3d& sum_sq) {

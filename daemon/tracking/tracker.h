@@ -34,12 +34,48 @@ struct TrackerOptions {
   /// Components of UNKNOWN voxels: 26-connected (faces, edges, corners) when
   /// true, 6-connected (faces) otherwise.
   bool connect_26 = true;
-  /// A component starts a track when at least this volume of it lies outside
-  /// every track's gate (m^3).
-  double birth_min_volume_m3 = 0.03;
+  /// A component starts a track when at least this volume of it is evidence
+  /// of a new person (outside every track's gate, standing on something, seen
+  /// past the tracks; m^3). A crawling adult's hull is about 0.15 m^3; the
+  /// occupancy the reconstruction leaves between the shelves of a rack is
+  /// smaller.
+  double birth_min_volume_m3 = 0.06;
   /// A track's gate: its estimate ellipsoid grown by this margin plus two
   /// standard deviations of the centre along each axis (m).
   double birth_gate_margin_m = 0.2;
+  /// People do not float: a component starts a track only when some of its
+  /// evidence voxels stand on something. Going down from such a voxel,
+  /// through unexplained UNKNOWN and OCCLUDED voxels (a person's legs may be
+  /// where no camera sees) and at most this much FREE space (m), one reaches
+  /// the floor (the grid's bottom) or an obstacle (KNOWN). Occupancy hanging
+  /// in seen-empty space is a reconstruction artefact: silhouette cones near
+  /// the cameras' height that few cameras bound, or the space a person hides
+  /// from the only cameras that see under a table. Negative: no check.
+  double birth_max_floating_m = 0.1;
+  /// Explaining away (with cameras: the constructor from a StaticScene). A
+  /// voxel outside every gate counts towards a birth only when some camera
+  /// sees it and every camera that sees it looks at it past every supported
+  /// track: each line of sight misses each track's estimate ellipsoid grown
+  /// by this margin (m). Otherwise a tracked person in some camera's line of
+  /// sight may be all that makes the voxel occupied: visual-hull ghosts
+  /// between people, the long tips of a hull that only two cameras bound, the
+  /// shadow a person casts into space that only cameras behind them see, or
+  /// the octree's coarse leaves at view and obstacle edges, which are
+  /// occupied when any one camera sees foreground in them. Negative: off.
+  double explain_margin_m = 0.1;
+  /// With cameras: a voxel counts towards a birth only when at least this
+  /// many cameras see it. What one camera alone sees occupied may be anywhere
+  /// along its line of sight (and the octree's coarse leaves at obstacle
+  /// edges, inside a rack's shelves, are occupied when one camera sees
+  /// foreground anywhere in them).
+  int birth_min_views = 2;
+  /// With cameras: a camera counts as seeing a voxel for births only when it
+  /// sees the centres of all voxels within this many voxels of it (a cube).
+  /// The octree certifies a leaf free only when some camera sees all of it, so
+  /// along an obstacle's silhouette edge (space under a table seen through
+  /// the gap at its rim) leaves stay occupied although the cameras see their
+  /// centres; with this margin they are not evidence of a person.
+  int birth_view_margin_voxels = 2;
   /// A component that would start a track is instead given to the nearest
   /// track without support whose centre lies within reacquire_radius_m +
   /// reacquire_speed_mps * (its time without support): the person who
@@ -55,6 +91,12 @@ struct TrackerOptions {
   /// An occluded track (a person hiding under a table) dies after this long
   /// without support (s).
   double occluded_death_timeout_s = 30.0;
+  /// A track younger than tentative_age_s dies after tentative_death_timeout_s
+  /// without support, occluded or not: what the reconstruction shows for a
+  /// moment and then never again (an artefact at an obstacle's edge) is not
+  /// followed for a whole death timeout.
+  double tentative_age_s = 1.0;
+  double tentative_death_timeout_s = 0.2;
   /// A track is occluded when at least this share of its estimate ellipsoid's
   /// voxels is OCCLUDED.
   double occluded_min_share = 0.5;
@@ -116,8 +158,12 @@ struct TrackerStats {
 ///    occluded tracks), or the estimate ellipsoid entirely outside the grid;
 /// 4. births: connected components of the UNKNOWN voxels (searched from the
 ///    UNKNOWN list, never over the grid) whose voxels outside every track's
-///    gate reach birth_min_volume_m3 start a track on those voxels (centre =
-///    mean, half-axes from their spread), unless a track without support is
+///    gate and that the cameras see past every supported track
+///    (explain_margin_m, birth_min_views) reach birth_min_volume_m3, some of
+///    them standing on something (the floor, an obstacle, or space no camera
+///    sees: birth_max_floating_m), start a
+///    track on those voxels (centre = mean, half-axes from their spread),
+///    unless a track without support is
 ///    near enough to re-acquire them (its filter restarts there, same id).
 ///    The search is skipped when all unexplained voxels together stay below
 ///    birth_min_volume_m3 (everybody tracked: one gate test per UNKNOWN
@@ -171,13 +217,24 @@ class Tracker {
     std::vector<HalfSpace> region;  // Own Voronoi region this cycle.
   };
 
-  Tracker(const TrackerOptions& options, std::pair<VoxelMap, CollisionWorld>&& built);
+  struct Built;
+  static Built BuildStatic(const TrackerOptions& options, const common::Box3& bounds,
+                           const StaticScene& scene);
+  Tracker(const TrackerOptions& options, Built&& built);
   void Init();
   void Assess(Slot* slot, double dt_s);
   void Births();
   /// A component with `unexplained` voxels outside every gate (sum and sum of
   /// squares of their centres): re-acquired by a lost track, or a new track.
   void StartOrReacquire(int unexplained, const Eigen::Vector3d& sum, const Eigen::Vector3d& sum_sq);
+  /// The column below unexplained UNKNOWN voxel `index` reaches the floor or
+  /// an obstacle (TrackerOptions::birth_max_floating_m). Memoised in marks_.
+  [[nodiscard]] bool Grounded(std::uint32_t index);
+  /// At least birth_min_views cameras see the voxel, and every camera that
+  /// sees it looks at it past every supported track.
+  [[nodiscard]] bool SeenPastTracks(std::uint32_t index, const Eigen::Vector3d& p_W) const;
+  /// The line-of-sight tests of this cycle's supported tracks.
+  void PrepareSightTests();
   void Publish();
   /// Inside a live track's gate.
   [[nodiscard]] bool Explained(const Eigen::Vector3d& p_W) const;
@@ -196,6 +253,20 @@ class Tracker {
   std::vector<std::uint8_t> marks_;   // Per voxel: explained / unexplained / visited.
   std::vector<std::uint32_t> queue_;  // Component search order.
   std::vector<Eigen::Vector3i> neighbours_;
+  std::vector<std::uint32_t> path_;  // Grounded(): the column walked.
+  // Explaining away: per voxel the cameras that see it, the cameras' centres,
+  // and per camera and supported track the ellipsoid in its unit-sphere frame.
+  struct SightTest {
+    Eigen::Vector3d centre_W;
+    Eigen::Vector3d inv_half_axes;
+    Eigen::Vector3d camera_S;  // Camera centre in the unit-sphere frame.
+    double camera_norm2_minus_1 = 0.0;
+  };
+  std::vector<std::uint16_t> views_;  // Eroded by birth_view_margin_voxels.
+  void ErodeViews();
+  std::vector<Eigen::Vector3d> camera_centres_W_;
+  std::vector<SightTest> sight_tests_;  // Camera-major, sight_tracks_ per camera.
+  int sight_tracks_ = 0;
   std::uint32_t next_id_ = 1;
   std::int64_t last_stamp_ns_ = 0;
   bool has_stamp_ = false;

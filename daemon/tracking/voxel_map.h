@@ -70,7 +70,8 @@ class VoxelMap {
 
   [[nodiscard]] const VoxelGrid& grid() const { return grid_; }
 
-  /// The state of a voxel (precedence KNOWN > UNKNOWN > OCCLUDED > FREE).
+  /// The state of a voxel. Only FREE voxels become UNKNOWN: KNOWN and
+  /// OCCLUDED are static (precedence KNOWN > OCCLUDED > UNKNOWN > FREE).
   [[nodiscard]] VoxelState State(std::uint32_t index) const {
     const std::uint8_t f = flags_[index];
     const auto s = static_cast<VoxelState>(f & kStaticMask);
@@ -83,8 +84,11 @@ class VoxelMap {
     return static_cast<VoxelState>(flags_[index] & kStaticMask);
   }
 
-  /// Replaces the UNKNOWN set by the given voxel indices (duplicates and KNOWN
-  /// voxels allowed; KNOWN voxels stay KNOWN). Precondition: every index < grid().size().
+  /// Replaces the UNKNOWN set by the given voxel indices (duplicates, KNOWN and
+  /// OCCLUDED voxels allowed; those stay as they are: occupancy where no
+  /// camera sees the voxel's centre is what the reconstruction could not
+  /// certify free, not a camera's evidence of a person, and scores as the
+  /// space a person may hide in). Precondition: every index < grid().size().
   void SetUnknown(std::span<const std::uint32_t> indices);
 
   /// Replaces the UNKNOWN set by every voxel that overlaps (with positive
@@ -92,7 +96,8 @@ class VoxelMap {
   /// from this one in bounds and resolution. Cells outside this grid are ignored.
   void SetUnknownFromSnapshot(const pipeline::OccupancySnapshot& snapshot);
 
-  /// The UNKNOWN voxels of the current cycle, each once (KNOWN ones left out).
+  /// The UNKNOWN voxels of the current cycle, each once (KNOWN and OCCLUDED
+  /// ones left out).
   [[nodiscard]] std::span<const std::uint32_t> unknown_voxels() const { return current_; }
 
   /// Prefix counts of row (y, z): nx() + 1 entries.
@@ -111,7 +116,7 @@ class VoxelMap {
   void Stage(std::uint32_t index) {
     const std::uint8_t f = flags_[index];
     if ((f & kStagedBit) == 0 &&
-        (f & kStaticMask) != static_cast<std::uint8_t>(VoxelState::kKnown)) {
+        (f & kStaticMask) == static_cast<std::uint8_t>(VoxelState::kFree)) {
       flags_[index] = f | kStagedBit;
       staged_.push_back(index);
     }

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "app/config_doc.h"
+#include "app/tracking_stage.h"
 #include "common/config_error.h"
 #include "support/run_tool.h"
 
@@ -412,6 +413,142 @@ TEST(HullguarddTest, CheckConfig) {
   const testing::ProcessResult docs = testing::RunTool(HG_HULLGUARDD_BIN, "--print-config-docs");
   EXPECT_EQ(docs.code, 0);
   EXPECT_EQ(docs.out, ConfigReferenceMarkdown());
+}
+
+TEST(ConfigTrackingTest, DefaultsAreTheTrackersOwn) {
+  const Config c = Parse(kMinimal);
+  EXPECT_TRUE(c.tracking.enabled);
+  EXPECT_EQ(c.tracking.voxel_m, 0.04);
+  EXPECT_EQ(c.tracking.particles, 300);
+  EXPECT_EQ(c.tracking.max_tracks, 16);
+  EXPECT_EQ(c.tracking.rho_unknown, 1.0);
+  EXPECT_EQ(c.tracking.sigma_occluded, 0.1);
+  EXPECT_EQ(c.tracking.tau_known, -5.0);
+  EXPECT_EQ(c.tracking.epsilon_free, -0.1);
+  EXPECT_EQ(c.tracking.below_floor_weight, -0.1);
+  EXPECT_EQ(c.tracking.collision_radius_m, 0.2);
+  EXPECT_EQ(c.tracking.birth_min_volume_m3, 0.06);
+  EXPECT_EQ(c.tracking.death_timeout_s, 1.0);
+  EXPECT_EQ(c.tracking.occluded_death_timeout_s, 30.0);
+  EXPECT_EQ(c.tracking.reacquire_radius_m, 0.5);
+  EXPECT_EQ(c.tracking.reacquire_speed_mps, 1.5);
+  // Every default maps onto the tracker's own default (but the first step,
+  // which is one fusion period).
+  const tracking::TrackerOptions o = MakeTrackerOptions(c.tracking, 30.0);
+  const tracking::TrackerOptions d;
+  EXPECT_EQ(o.voxel_m, d.voxel_m);
+  EXPECT_EQ(o.filter.num_particles, d.filter.num_particles);
+  EXPECT_EQ(o.max_tracks, d.max_tracks);
+  EXPECT_EQ(o.likelihood.unknown, d.likelihood.unknown);
+  EXPECT_EQ(o.likelihood.occluded, d.likelihood.occluded);
+  EXPECT_EQ(o.likelihood.known, d.likelihood.known);
+  EXPECT_EQ(o.likelihood.free, d.likelihood.free);
+  EXPECT_EQ(o.likelihood.below_floor, d.likelihood.below_floor);
+  EXPECT_EQ(o.filter.collision_radius_m, d.filter.collision_radius_m);
+  EXPECT_EQ(o.birth_min_volume_m3, d.birth_min_volume_m3);
+  EXPECT_EQ(o.death_timeout_s, d.death_timeout_s);
+  EXPECT_EQ(o.occluded_death_timeout_s, d.occluded_death_timeout_s);
+  EXPECT_EQ(o.reacquire_radius_m, d.reacquire_radius_m);
+  EXPECT_EQ(o.reacquire_speed_mps, d.reacquire_speed_mps);
+  EXPECT_DOUBLE_EQ(o.first_dt_s, 1.0 / 30.0);
+  EXPECT_TRUE(tracking::CheckOptions(o).empty());
+}
+
+/// kMinimal with a tracking section setting every key; its keys are on lines 12 to 26.
+const std::string kTracking = std::string(kMinimal) + R"(tracking:
+  enabled: false
+  voxel_m: 0.05
+  particles: 120
+  max_tracks: 4
+  rho_unknown: 2
+  sigma_occluded: 0.2
+  tau_known: -4
+  epsilon_free: -0.2
+  below_floor_weight: 0
+  collision_radius_m: 0.15
+  birth_min_volume_m3: 0.05
+  death_timeout_s: 2
+  occluded_death_timeout_s: 20
+  reacquire_radius_m: 0.7
+  reacquire_speed_mps: 1
+)";
+
+TEST(ConfigTrackingTest, EveryKeyReadsBackAndMaps) {
+  const Config c = Parse(kTracking);
+  EXPECT_FALSE(c.tracking.enabled);
+  const tracking::TrackerOptions o = MakeTrackerOptions(c.tracking, 20.0);
+  EXPECT_EQ(o.voxel_m, 0.05);
+  EXPECT_EQ(o.filter.num_particles, 120);
+  EXPECT_EQ(o.max_tracks, 4);
+  EXPECT_EQ(o.likelihood.unknown, 2.0);
+  EXPECT_EQ(o.likelihood.occluded, 0.2);
+  EXPECT_EQ(o.likelihood.known, -4.0);
+  EXPECT_EQ(o.likelihood.free, -0.2);
+  EXPECT_EQ(o.likelihood.below_floor, 0.0);
+  EXPECT_EQ(o.filter.collision_radius_m, 0.15);
+  EXPECT_EQ(o.birth_min_volume_m3, 0.05);
+  EXPECT_EQ(o.death_timeout_s, 2.0);
+  EXPECT_EQ(o.occluded_death_timeout_s, 20.0);
+  EXPECT_EQ(o.reacquire_radius_m, 0.7);
+  EXPECT_EQ(o.reacquire_speed_mps, 1.0);
+  EXPECT_DOUBLE_EQ(o.first_dt_s, 0.05);
+}
+
+TEST(ConfigTrackingTest, EachMistakeNamesFileLineAndKey) {
+  ASSERT_EQ(ErrorOf(kTracking), "");
+  const Mistake mistakes[] = {
+      {"enabled: false", "enabled: sometimes", 12, "tracking.enabled", "true or false"},
+      {"voxel_m: 0.05", "voxel_m: 0", 13, "tracking.voxel_m", "must be in 0.01 .. 1"},
+      {"particles: 120", "particles: 0", 14, "tracking.particles", "must be in 1 .. 100000"},
+      {"particles: 120", "particles: many", 14, "tracking.particles", "expected an integer"},
+      {"max_tracks: 4", "max_tracks: 2000", 15, "tracking.max_tracks", "must be in 1 .. 1024"},
+      {"rho_unknown: 2", "rho_unknown: 0", 16, "tracking.rho_unknown", "must be > 0"},
+      {"tau_known: -4", "tau_known: big", 18, "tracking.tau_known", "expected a number"},
+      // The tracker's own check (tracking::CheckOptions), at the line of the key.
+      {"collision_radius_m: 0.15", "collision_radius_m: 0.3", 21, "tracking.collision_radius_m",
+       "not larger than any half-axis"},
+      {"death_timeout_s: 2", "death_timeout_s: 0", 23, "tracking.death_timeout_s", "must be > 0"},
+      {"reacquire_speed_mps: 1", "reacquire_speed_mps: -1", 26, "tracking.reacquire_speed_mps",
+       "must be >= 0"},
+      {"reacquire_speed_mps: 1", "reacquire_speed: 1", 26, "tracking",
+       "unknown key 'reacquire_speed'"},
+  };
+  for (const Mistake& m : mistakes) {
+    const std::string error = ErrorOf(Replace(kTracking, m.from, m.to));
+    SCOPED_TRACE(std::string(m.from) + " -> " + m.to);
+    EXPECT_EQ(Lines(error).size(), 1u) << error;
+    const std::string head = "t.yaml:" + std::to_string(m.line) + ": " + m.path + ": ";
+    EXPECT_EQ(error.rfind(head, 0), 0u) << error;
+    EXPECT_NE(error.find(m.problem), std::string::npos) << error;
+  }
+}
+
+TEST(ConfigTrackingTest, GridTooLargeForTheCellIsRejectedWhenEnabled) {
+  // 40 x 40 x 4 m at 2 cm: 800 million voxels.
+  const std::string big = Replace(Replace(kTracking, "max: [4, 4, 4]", "max: [40, 40, 4]"),
+                                  "voxel_m: 0.05", "voxel_m: 0.02");
+  EXPECT_EQ(ErrorOf(big), "");  // Tracking is off: no grid is built.
+  const std::string error = ErrorOf(Replace(big, "enabled: false", "enabled: true"));
+  EXPECT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_EQ(error.rfind("t.yaml:13: tracking.voxel_m: ", 0), 0u) << error;
+  EXPECT_NE(error.find("at most 5e+07"), std::string::npos) << error;
+  // Without a tracking section the defaults (4 cm) are checked; no line to name.
+  const std::string default_error =
+      ErrorOf(Replace(kMinimal, "max: [4, 4, 4]", "max: [100, 100, 10]"));
+  EXPECT_EQ(default_error.rfind("t.yaml: tracking.voxel_m: ", 0), 0u) << default_error;
+}
+
+TEST(ConfigTrackingTest, ReferenceDocListsTheSection) {
+  const std::string md = ConfigReferenceMarkdown();
+  EXPECT_NE(md.find("| `tracking` | map |"), std::string::npos);
+  EXPECT_NE(md.find("| `tracking.enabled` | bool | true | - |"), std::string::npos);
+  EXPECT_NE(md.find("| `tracking.voxel_m` | number | 0.04 | 0.01 .. 1 |"), std::string::npos);
+  EXPECT_NE(md.find("| `tracking.particles` | integer | 300 | 1 .. 100000 |"), std::string::npos);
+  for (const char* key :
+       {"`tracking.rho_unknown`", "`tracking.sigma_occluded`", "`tracking.tau_known`",
+        "`tracking.epsilon_free`", "`tracking.collision_radius_m`", "`tracking.death_timeout_s`"}) {
+    EXPECT_NE(md.find(key), std::string::npos) << key;
+  }
 }
 
 }  // namespace

@@ -714,7 +714,6 @@ TEST(ShippedScenesTest, AllLoadAndEveryCameraSeesTheCellCentre) {
     EXPECT_GE(scene.cameras.size(), 4u);
     EXPECT_LE(scene.cameras.size(), 8u);
     EXPECT_FALSE(scene.people.empty());
-    EXPECT_FALSE(scene.obstacles.empty());
     const Eigen::Vector3d centre = 0.5 * (scene.bounds.min + scene.bounds.max);
     for (const SceneCamera& camera : scene.cameras) {
       SCOPED_TRACE(camera.model.name);
@@ -747,9 +746,14 @@ TEST(ShippedScenesTest, PeopleStayInTheCellAndClearOfObjects) {
       // Checks one feet position; returns false on the first problem so that
       // a bad path reports once.
       auto check = [&](ActionKind kind, const Eigen::Vector3d& p_W, double t_s) {
-        const bool inside = p_W.x() >= scene.bounds.min.x() && p_W.x() <= scene.bounds.max.x() &&
-                            p_W.y() >= scene.bounds.min.y() && p_W.y() <= scene.bounds.max.y();
-        EXPECT_TRUE(inside) << "feet outside the bounds at t = " << t_s << " s";
+        // People may enter and leave the cell: their feet stay within
+        // kDoorway of the bounds.
+        constexpr double kDoorway = 1.0;
+        const bool inside = p_W.x() >= scene.bounds.min.x() - kDoorway &&
+                            p_W.x() <= scene.bounds.max.x() + kDoorway &&
+                            p_W.y() >= scene.bounds.min.y() - kDoorway &&
+                            p_W.y() <= scene.bounds.max.y() + kDoorway;
+        EXPECT_TRUE(inside) << "feet far outside the bounds at t = " << t_s << " s";
         if (!inside) return false;
         const common::Box3 room = Envelope(person, kind, p_W);
         for (const Solid* solid : solids) {

@@ -1,5 +1,6 @@
 #include "tracking/particle_filter.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -47,34 +48,42 @@ TEST(ParticleFilterTest, ClampHalfAxesKeepsHumanSizes) {
 }
 
 // Without diffusion the particles stay put, so the weights can be checked
-// against the likelihood of each particle: w_i = max(score_i, 0) / S.
-TEST(ParticleFilterTest, WeightsAreTheClampedNormalisedScores) {
-  VoxelMap map = OpenCell();
-  SetBlobs(&map, {Person({2.0, 2.0, 0.9})});
-  ParticleFilterOptions o;
-  o.position_noise_m_per_sqrt_s = 0.0;
-  o.vertical_noise_m_per_sqrt_s = 0.0;
-  o.axis_noise_m_per_sqrt_s = 0.0;
-  o.init_position_spread_m = 0.3;  // Some particles end up mostly on free space.
-  ParticleFilter f(o);
-  f.Reset(Person({2.0, 2.0, 0.9}), Vector3d::Zero(), 3);
-  const std::vector<Ellipsoid> before(f.particles().begin(), f.particles().end());
-  const LikelihoodWeights w;
-  f.Step(kDt, map, w, CollisionWorld());
-  std::vector<double> clamped;
-  double total = 0.0;
-  for (const Ellipsoid& p : before) {
-    clamped.push_back(std::max(Score(CountVoxels(map, p), w), 0.0));
-    total += clamped.back();
+// against the likelihood of each particle: w_i = (max(score_i, 0) / best)^p / S.
+TEST(ParticleFilterTest, WeightsAreTheSharpenedNormalisedScores) {
+  for (const double exponent : {1.0, 8.0}) {
+    VoxelMap map = OpenCell();
+    SetBlobs(&map, {Person({2.0, 2.0, 0.9})});
+    ParticleFilterOptions o;
+    o.position_noise_m_per_sqrt_s = 0.0;
+    o.vertical_noise_m_per_sqrt_s = 0.0;
+    o.axis_noise_m_per_sqrt_s = 0.0;
+    o.init_position_spread_m = 0.3;  // Some particles end up mostly on free space.
+    o.weight_exponent = exponent;
+    ParticleFilter f(o);
+    f.Reset(Person({2.0, 2.0, 0.9}), Vector3d::Zero(), 3);
+    const std::vector<Ellipsoid> before(f.particles().begin(), f.particles().end());
+    const LikelihoodWeights w;
+    f.Step(kDt, map, w, CollisionWorld());
+    std::vector<double> clamped;
+    double best = 0.0;
+    for (const Ellipsoid& p : before) {
+      clamped.push_back(std::max(Score(CountVoxels(map, p), w), 0.0));
+      best = std::max(best, clamped.back());
+    }
+    ASSERT_GT(best, 0.0);
+    double total = 0.0;
+    for (double& c : clamped) {
+      c = std::pow(c / best, exponent);
+      total += c;
+    }
+    int zeros = 0;
+    for (std::size_t i = 0; i < before.size(); ++i) {
+      EXPECT_NEAR(f.weights()[i], clamped[i] / total, 1e-12) << "p = " << exponent;
+      zeros += clamped[i] == 0.0;
+    }
+    EXPECT_GT(zeros, 0);
+    EXPECT_TRUE(f.estimate().weighted);
   }
-  ASSERT_GT(total, 0.0);
-  int zeros = 0;
-  for (std::size_t i = 0; i < before.size(); ++i) {
-    EXPECT_NEAR(f.weights()[i], clamped[i] / total, 1e-12);
-    zeros += clamped[i] == 0.0;
-  }
-  EXPECT_GT(zeros, 0);
-  EXPECT_TRUE(f.estimate().weighted);
 }
 
 TEST(ParticleFilterTest, ConvergesOntoABlob) {

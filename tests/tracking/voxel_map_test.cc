@@ -102,7 +102,7 @@ TEST(VoxelMapTest, IncrementalUpdatesEqualFromScratch) {
     const std::set<std::uint32_t> expected_unknown = [&] {
       std::set<std::uint32_t> e;
       for (const std::uint32_t i : set) {
-        if (statics[i] != VoxelState::kKnown) e.insert(i);
+        if (statics[i] == VoxelState::kFree) e.insert(i);
       }
       return e;
     }();
@@ -145,19 +145,25 @@ TEST(VoxelMapTest, RebuildsOnlyChangedRows) {
   ExpectPrefixMatchesStates(map);
 }
 
-TEST(VoxelMapTest, KnownStaysKnown) {
+// Static labels win over occupancy: an obstacle stays an obstacle, and space
+// no camera sees stays OCCLUDED (the reconstruction could not certify it free;
+// no camera saw a person there).
+TEST(VoxelMapTest, KnownAndOccludedStayStatic) {
   const VoxelGrid g = SmallGrid();
   std::vector<VoxelState> s(g.size(), VoxelState::kFree);
   s[g.Index(2, 2, 2)] = VoxelState::kKnown;
   s[g.Index(3, 2, 2)] = VoxelState::kOccluded;
   VoxelMap map(g, s);
-  map.SetUnknown(std::vector<std::uint32_t>{g.Index(2, 2, 2), g.Index(3, 2, 2)});
+  map.SetUnknown(std::vector<std::uint32_t>{g.Index(2, 2, 2), g.Index(3, 2, 2), g.Index(4, 2, 2)});
   EXPECT_EQ(map.State(2, 2, 2), VoxelState::kKnown);
-  EXPECT_EQ(map.State(3, 2, 2), VoxelState::kUnknown);  // Occupied beats occluded.
+  EXPECT_EQ(map.State(3, 2, 2), VoxelState::kOccluded);
+  EXPECT_EQ(map.State(4, 2, 2), VoxelState::kUnknown);
   ASSERT_EQ(map.unknown_voxels().size(), 1u);
-  EXPECT_EQ(map.unknown_voxels()[0], g.Index(3, 2, 2));
+  EXPECT_EQ(map.unknown_voxels()[0], g.Index(4, 2, 2));
+  ExpectPrefixMatchesStates(map);
   map.SetUnknown({});
   EXPECT_EQ(map.State(3, 2, 2), VoxelState::kOccluded);
+  EXPECT_EQ(map.State(4, 2, 2), VoxelState::kFree);
 }
 
 // Snapshot cells map to the voxels they overlap with positive volume.

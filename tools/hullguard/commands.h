@@ -17,6 +17,12 @@ void RegisterDemo(CLI::App& app, int* exit_code);
 void RegisterSynth(CLI::App& app, int* exit_code);
 void RegisterBench(CLI::App& app, int* exit_code);
 void RegisterReplay(CLI::App& app, int* exit_code);
+/// Records every camera of a daemon config (docs/cameras.md).
+void RegisterRecord(CLI::App& app, int* exit_code);
+/// Tracks a simulated scene on its reconstruction and scores it (CLEAR MOT).
+void RegisterTrackEval(CLI::App& app, int* exit_code);
+/// Optimises where to mount cameras (docs/placement.md).
+void RegisterPlace(CLI::App& app, int* exit_code);
 /// Only in builds with Cyclone DDS (HG_WITH_DDS).
 void RegisterEcho(CLI::App& app, int* exit_code);
 

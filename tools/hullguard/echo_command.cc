@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
+#include <deque>
 #include <memory>
 #include <string>
 #include <vector>
@@ -27,16 +29,30 @@ struct EchoFlags {
   double timeout_s = 0;  // 0 = no timeout.
   double deadline_ms = 500;
   bool json = false;
-  std::string topic = "all";  // occupancy, status or all.
+  std::string topic = "all";  // occupancy, status, tracks or all.
   std::string snapshot;       // PNG of the last occupancy sample; empty: none.
 };
 
-// What the last occupancy sample held (for --snapshot) and the latencies seen.
-struct EchoRecord {
+bool Shows(const EchoFlags& f, const char* topic) { return f.topic == "all" || f.topic == topic; }
+
+// The cells of one occupancy sample (for --snapshot).
+struct OccupancyCells {
   std::vector<hullguard_GridRun> occupied, occluded;
   common::Box3 bounds;
   int depth = 0;
   std::uint64_t sequence = 0;
+};
+
+// Occupancy samples kept for --snapshot: tracks arrive after the occupancy
+// they were computed from, and are drawn over that one when it is still here.
+constexpr std::size_t kRecentOccupancy = 16;
+
+// What the last samples held (for --snapshot) and the latencies seen.
+struct EchoRecord {
+  std::deque<OccupancyCells> recent;    // Newest last.
+  std::vector<hullguard_Track> tracks;  // Of the last tracks sample.
+  std::uint64_t tracks_sequence = 0;
+  bool has_tracks = false;
   std::vector<double> latency_ms;  // Received (CLOCK_REALTIME) minus stamp.
 };
 
@@ -49,31 +65,63 @@ std::int64_t RealtimeNs() {
 void Record(const hullguard_Occupancy& s, bool keep_cells, EchoRecord* r) {
   r->latency_ms.push_back(static_cast<double>(RealtimeNs() - s.stamp_ns) * 1e-6);
   if (!keep_cells) return;
-  r->occupied.assign(s.occupied._buffer, s.occupied._buffer + s.occupied._length);
-  r->occluded.assign(s.occluded._buffer, s.occluded._buffer + s.occluded._length);
-  r->bounds.min = Eigen::Vector3d(s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]);
-  r->bounds.max = Eigen::Vector3d(s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]);
-  r->depth = s.depth;
-  r->sequence = s.sequence;
+  if (r->recent.size() == kRecentOccupancy) r->recent.pop_front();
+  OccupancyCells& o = r->recent.emplace_back();
+  o.occupied.assign(s.occupied._buffer, s.occupied._buffer + s.occupied._length);
+  o.occluded.assign(s.occluded._buffer, s.occluded._buffer + s.occluded._length);
+  o.bounds.min = Eigen::Vector3d(s.bounds_min[0], s.bounds_min[1], s.bounds_min[2]);
+  o.bounds.max = Eigen::Vector3d(s.bounds_max[0], s.bounds_max[1], s.bounds_max[2]);
+  o.depth = s.depth;
+  o.sequence = s.sequence;
 }
 
+void RecordTracks(const hullguard_Tracks& s, EchoRecord* r) {
+  r->tracks.assign(s.tracked._buffer, s.tracked._buffer + s.tracked._length);
+  r->tracks_sequence = s.sequence;
+  r->has_tracks = true;
+}
+
+Eigen::Vector3d Vec(const float (&v)[3]) { return {v[0], v[1], v[2]}; }
+
+// The newest occupancy sample, or the one the last tracks sample was computed
+// from while it is still kept, with those tracks drawn over it.
 void WriteEchoSnapshot(const EchoRecord& r, const std::string& path) {
+  if (r.recent.empty()) return;
+  const OccupancyCells* shown = &r.recent.back();
+  for (const OccupancyCells& o : r.recent) {
+    if (r.has_tracks && o.sequence == r.tracks_sequence) shown = &o;
+  }
   std::vector<SnapshotBox> boxes;
-  const double n = static_cast<double>(1 << r.depth);
-  const Eigen::Vector3d cell = r.bounds.Size() / n;
-  for (const auto* cells : {&r.occupied, &r.occluded}) {
+  const double n = static_cast<double>(1 << shown->depth);
+  const Eigen::Vector3d cell = shown->bounds.Size() / n;
+  for (const auto* cells : {&shown->occupied, &shown->occluded}) {
     for (const hullguard_GridRun& c : *cells) {
       common::Box3 box;
-      box.min = r.bounds.min + Eigen::Vector3d(c.x, c.y, c.z).cwiseProduct(cell);
+      box.min = shown->bounds.min + Eigen::Vector3d(c.x, c.y, c.z).cwiseProduct(cell);
       box.max = box.min + Eigen::Vector3d(c.length, 1, 1).cwiseProduct(cell);
-      boxes.push_back({box, cells == &r.occupied});
+      boxes.push_back({box, cells == &shown->occupied});
     }
   }
-  char caption[96];
-  std::snprintf(caption, sizeof(caption), "Occupancy sample %llu, %d x %d x %d grid.",
-                static_cast<unsigned long long>(r.sequence), 1 << r.depth, 1 << r.depth,
-                1 << r.depth);
-  WriteSnapshotPicture(boxes, r.bounds, {}, {}, caption, path);
+  std::vector<SnapshotTrack> tracks;
+  for (const hullguard_Track& t : r.tracks) {
+    tracks.push_back({t.id, Vec(t.centre), Vec(t.half_axes), Vec(t.velocity), t.occluded});
+  }
+  char caption[160];
+  const int side = 1 << shown->depth;
+  if (!r.has_tracks) {
+    std::snprintf(caption, sizeof(caption), "Occupancy sample %llu, %d x %d x %d grid.",
+                  static_cast<unsigned long long>(shown->sequence), side, side, side);
+  } else if (r.tracks_sequence == shown->sequence) {
+    std::snprintf(
+        caption, sizeof(caption), "Occupancy sample %llu, %d x %d x %d grid; tracks: %zu.",
+        static_cast<unsigned long long>(shown->sequence), side, side, side, tracks.size());
+  } else {
+    std::snprintf(caption, sizeof(caption),
+                  "Occupancy sample %llu, %d x %d x %d grid; tracks of sample %llu: %zu.",
+                  static_cast<unsigned long long>(shown->sequence), side, side, side,
+                  static_cast<unsigned long long>(r.tracks_sequence), tracks.size());
+  }
+  WriteSnapshotPicture(boxes, shown->bounds, {}, {}, caption, path, tracks);
 }
 
 void PrintLatency(const EchoRecord& r, bool json) {
@@ -96,6 +144,7 @@ void PrintLatency(const EchoRecord& r, bool json) {
 
 constexpr dds_attach_t kOccupancyToken = 1;
 constexpr dds_attach_t kStatusToken = 2;
+constexpr dds_attach_t kTracksToken = 3;
 constexpr std::uint32_t kStatusMask = DDS_DATA_AVAILABLE_STATUS |
                                       DDS_REQUESTED_DEADLINE_MISSED_STATUS |
                                       DDS_LIVELINESS_CHANGED_STATUS;
@@ -178,17 +227,31 @@ void PrintStatus(const hullguard_Status& s, bool json) {
   std::string cameras;
   for (std::uint32_t i = 0; i < s.cameras._length; ++i) {
     const hullguard_CameraStatus& c = s.cameras._buffer[i];
-    char buf[96];
+    char buf[256];
     if (json) {
       std::snprintf(buf, sizeof(buf), "%s{\"name\": ", i == 0 ? "" : ", ");
       cameras += buf + JsonString(c.name);
-      std::snprintf(buf, sizeof(buf), ", \"state\": \"%s\", \"fps\": %.2f, \"fault\": \"%s\"}",
-                    CameraStateName(c.state), c.fps, FaultName(c.fault));
+      std::snprintf(
+          buf, sizeof(buf),
+          ", \"state\": \"%s\", \"fps\": %.2f, \"fault\": \"%s\", \"completed\": %llu, "
+          "\"failed\": %llu, \"underruns\": %llu, \"resends\": %llu}",
+          CameraStateName(c.state), c.fps, FaultName(c.fault),
+          static_cast<unsigned long long>(c.completed), static_cast<unsigned long long>(c.failed),
+          static_cast<unsigned long long>(c.underruns), static_cast<unsigned long long>(c.resends));
       cameras += buf;
     } else {
       std::snprintf(buf, sizeof(buf), ":%s@%.1ffps%s%s", CameraStateName(c.state), c.fps,
                     c.fault != 0 ? ":" : "", c.fault != 0 ? FaultName(c.fault) : "");
       cameras += (i == 0 ? "" : " ") + std::string(c.name != nullptr ? c.name : "") + buf;
+      // Transport counters: GigE Vision sources only (all zero otherwise).
+      if (c.completed + c.failed + c.underruns + c.resends > 0) {
+        std::snprintf(buf, sizeof(buf), ":completed=%llu,failed=%llu,underruns=%llu,resends=%llu",
+                      static_cast<unsigned long long>(c.completed),
+                      static_cast<unsigned long long>(c.failed),
+                      static_cast<unsigned long long>(c.underruns),
+                      static_cast<unsigned long long>(c.resends));
+        cameras += buf;
+      }
     }
   }
   if (json) {
@@ -201,6 +264,56 @@ void PrintStatus(const hullguard_Status& s, bool json) {
     std::printf("status seq=%llu degraded=%d deadline_misses=%llu cycle_ms=%.2f cameras=[%s]\n",
                 static_cast<unsigned long long>(s.sequence), s.degraded ? 1 : 0,
                 static_cast<unsigned long long>(s.deadline_misses), s.cycle_ms, cameras.c_str());
+  }
+}
+
+// "[1.23,0.90,0.95]" / "(1.23 0.90 0.95)".
+std::string Triple(const float (&v)[3], bool json) {
+  char buf[96];
+  std::snprintf(buf, sizeof(buf), json ? "[%.4g, %.4g, %.4g]" : "(%.2f %.2f %.2f)", v[0], v[1],
+                v[2]);
+  return buf;
+}
+
+void PrintTracks(const hullguard_Tracks& s, bool json) {
+  std::string tracks;
+  for (std::uint32_t i = 0; i < s.tracked._length; ++i) {
+    const hullguard_Track& t = s.tracked._buffer[i];
+    char buf[160];
+    if (json) {
+      std::snprintf(buf, sizeof(buf), "%s{\"id\": %u, \"centre\": ", i == 0 ? "" : ", ", t.id);
+      tracks += buf + Triple(t.centre, true) + ", \"half_axes\": " + Triple(t.half_axes, true) +
+                ", \"velocity\": " + Triple(t.velocity, true) +
+                ", \"spread\": " + Triple(t.spread, true);
+      std::snprintf(buf, sizeof(buf),
+                    ", \"occluded\": %s, \"occluded_fraction\": %.3f, \"age_s\": %.3f, "
+                    "\"time_since_support_s\": %.3f}",
+                    t.occluded ? "true" : "false", t.occluded_fraction, t.age_s,
+                    t.time_since_support_s);
+      tracks += buf;
+    } else {
+      std::snprintf(buf, sizeof(buf), " [#%u c=", t.id);
+      tracks += buf + Triple(t.centre, false) + " r=" + Triple(t.half_axes, false) +
+                " v=" + Triple(t.velocity, false) + " sd=" + Triple(t.spread, false);
+      std::snprintf(buf, sizeof(buf), " age=%.1fs%s", t.age_s, t.occluded ? " occluded" : "");
+      tracks += buf;
+      if (t.time_since_support_s > 0) {
+        std::snprintf(buf, sizeof(buf), " unsupported=%.2fs", t.time_since_support_s);
+        tracks += buf;
+      }
+      tracks += "]";
+    }
+  }
+  if (json) {
+    std::printf(
+        "{\"topic\": \"tracks\", \"sequence\": %llu, \"stamp_ns\": %lld, \"degraded\": %s, "
+        "\"tracks\": [%s]}\n",
+        static_cast<unsigned long long>(s.sequence), static_cast<long long>(s.stamp_ns),
+        s.degraded ? "true" : "false", tracks.c_str());
+  } else {
+    std::printf("tracks seq=%llu degraded=%d count=%u%s\n",
+                static_cast<unsigned long long>(s.sequence), s.degraded ? 1 : 0, s.tracked._length,
+                tracks.c_str());
   }
 }
 
@@ -268,12 +381,16 @@ int RunEcho(const EchoFlags& f) {
                                             publish::OccupancyReaderQos(deadline).get())};
   Stream status{"status",
                 dds::Reader(participant, status_topic, publish::StatusReaderQos(deadline).get())};
+  dds::Topic tracks_topic(participant, &hullguard_Tracks_desc, publish::TracksTopicName(f.prefix));
+  Stream tracks{"tracks",
+                dds::Reader(participant, tracks_topic, publish::TracksReaderQos(deadline).get())};
   dds::WaitSet waitset(participant);
-  for (Stream* s : {&occupancy, &status}) {
+  for (Stream* s : {&occupancy, &status, &tracks}) {
     dds::Check(dds_set_status_mask(s->reader.handle(), kStatusMask), "dds_set_status_mask");
   }
   waitset.Attach(occupancy.reader, kOccupancyToken);
   waitset.Attach(status.reader, kStatusToken);
+  waitset.Attach(tracks.reader, kTracksToken);
 
   const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                       std::chrono::duration<double>(f.timeout_s));
@@ -286,22 +403,28 @@ int RunEcho(const EchoFlags& f) {
       if (left <= Clock::duration::zero()) break;
       wait = std::min<std::chrono::nanoseconds>(wait, left);
     }
-    std::array<dds_attach_t, 2> triggered{};
+    std::array<dds_attach_t, 3> triggered{};
     const int n = waitset.Wait(triggered.data(), triggered.size(), wait);
     for (int i = 0; i < n; ++i) {
       if (triggered[i] == kOccupancyToken) {
         received += TakeAll<hullguard_Occupancy>(occupancy, f.json,
                                                  [&](const hullguard_Occupancy& sample, bool json) {
                                                    Record(sample, !f.snapshot.empty(), &record);
-                                                   if (f.topic != "status")
+                                                   if (Shows(f, "occupancy"))
                                                      PrintOccupancy(sample, json);
                                                  });
-        if (f.topic != "status") CheckEvents(occupancy, f.json);
+        if (Shows(f, "occupancy")) CheckEvents(occupancy, f.json);
+      } else if (triggered[i] == kTracksToken) {
+        TakeAll<hullguard_Tracks>(tracks, f.json, [&](const hullguard_Tracks& sample, bool json) {
+          RecordTracks(sample, &record);
+          if (Shows(f, "tracks")) PrintTracks(sample, json);
+        });
+        if (Shows(f, "tracks")) CheckEvents(tracks, f.json);
       } else {
         TakeAll<hullguard_Status>(status, f.json, [&](const hullguard_Status& sample, bool json) {
-          if (f.topic != "occupancy") PrintStatus(sample, json);
+          if (Shows(f, "status")) PrintStatus(sample, json);
         });
-        if (f.topic != "occupancy") CheckEvents(status, f.json);
+        if (Shows(f, "status")) CheckEvents(status, f.json);
       }
     }
     std::fflush(stdout);
@@ -324,7 +447,7 @@ int RunEcho(const EchoFlags& f) {
 void RegisterEcho(CLI::App& app, int* exit_code) {
   auto flags = std::make_shared<EchoFlags>();
   CLI::App* cmd = app.add_subcommand(
-      "echo", "Print the occupancy and status samples hullguardd publishes over DDS");
+      "echo", "Print the occupancy, status and tracks samples hullguardd publishes over DDS");
   cmd->add_option("--domain", flags->domain, "DDS domain id")->check(CLI::Range(0, 232));
   cmd->add_option("--prefix", flags->prefix, "Topic prefix (dds.topic_prefix of the daemon)");
   cmd->add_option("--count", flags->count, "Exit after this many occupancy samples (0: never)")
@@ -336,10 +459,10 @@ void RegisterEcho(CLI::App& app, int* exit_code) {
       ->check(CLI::Range(1.0, 3.6e6));
   cmd->add_flag("--json", flags->json, "One JSON object per line");
   cmd->add_option("--topic", flags->topic, "Print samples of this topic only")
-      ->check(CLI::IsMember({"occupancy", "status", "all"}));
+      ->check(CLI::IsMember({"occupancy", "status", "tracks", "all"}));
   cmd->add_option("--snapshot", flags->snapshot,
                   "Write a picture (PNG: top, side and perspective views) of the last occupancy "
-                  "sample at exit");
+                  "sample at exit, with the tracks computed from it");
   cmd->callback([flags, exit_code] { *exit_code = RunEcho(*flags); });
 }
 

@@ -14,6 +14,9 @@ int main(int argc, char** argv) {
   hg::tools::RegisterSynth(app, &exit_code);
   hg::tools::RegisterBench(app, &exit_code);
   hg::tools::RegisterReplay(app, &exit_code);
+  hg::tools::RegisterRecord(app, &exit_code);
+  hg::tools::RegisterTrackEval(app, &exit_code);
+  hg::tools::RegisterPlace(app, &exit_code);
 #ifdef HG_WITH_DDS
   hg::tools::RegisterEcho(app, &exit_code);
 #endif

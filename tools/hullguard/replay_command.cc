@@ -1,7 +1,9 @@
 // `hullguard replay`: the daemon's pipeline run lock-step over a recording, as
 // fast as it goes and deterministically, with a digest of the output stream
 // for regression checks.
+#include <algorithm>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -77,37 +79,73 @@ int RunReplay(const ReplayFlags& f) {
   std::vector<std::unique_ptr<capture::ReplaySource>> readers;
   std::vector<pipeline::PipelineCamera> cameras;
   int frames = 0;
+  bool synth = true;
+  std::int64_t end_ns = 0;  // Recording time of the last frame of any camera.
   for (const app::CameraConfig& c : config.cameras) {
     readers.push_back(std::make_unique<capture::ReplaySource>(
         capture::ReadRecordingCamera(f.recording, c.model.name), clock));
-    frames = std::max(frames, readers.back()->recording().frames);
+    const capture::RecordingCamera& r = readers.back()->recording();
+    frames = std::max(frames, readers.back()->frames());
+    synth = r.layout == capture::RecordingLayout::kSynth;
+    for (const capture::RecordedFrame& rf : r.frames) end_ns = std::max(end_ns, rf.time_ns);
     // Timeouts are measured between recorded stamps here, as in the daemon.
     cameras.push_back({c.model, nullptr, c.timeout_ms});
   }
-  if (f.frames > 0) frames = std::min(frames, f.frames);
   pipeline::Pipeline pipeline(options, std::move(cameras), app::LoadObstacles(config), nullptr);
 
   Digest digest;
   capture::Frame frame;
   std::uint64_t missing = 0, degraded = 0;
   std::shared_ptr<const pipeline::OccupancySnapshot> last;
-  for (int i = 0; i < frames; ++i) {
-    std::int64_t newest = 0;
-    for (std::size_t c = 0; c < readers.size(); ++c) {
-      if (!readers[c]->ReadFrame(i, &frame)) {
-        ++missing;
-        continue;
+  if (synth) {
+    // Synth recordings share one frame grid: a cycle per frame set, at the
+    // newest capture time of the set.
+    if (f.frames > 0) frames = std::min(frames, f.frames);
+    for (int i = 0; i < frames; ++i) {
+      std::int64_t newest = 0;
+      for (std::size_t c = 0; c < readers.size(); ++c) {
+        if (!readers[c]->ReadFrame(i, &frame)) {
+          ++missing;
+          continue;
+        }
+        newest = std::max(newest, frame.stamp_ns);
+        pipeline.Feed(static_cast<int>(c), frame);
       }
-      newest = std::max(newest, frame.stamp_ns);
-      pipeline.Feed(static_cast<int>(c), frame);
+      last = pipeline.Step(newest);
+      degraded += last->health.degraded ? 1 : 0;
+      AddSnapshot(*last, &digest);
     }
-    last = pipeline.Step(newest);
-    degraded += last->health.degraded ? 1 : 0;
-    AddSnapshot(*last, &digest);
+    std::printf("replay: %d frame sets of %zu cameras, %" PRIu64
+                " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
+                frames, readers.size(), missing, degraded);
+  } else {
+    // Recorded cameras run on their own clocks: a cycle every 1 / rate_hz of
+    // recording time, after every frame captured by then has been fed in
+    // capture order (the background model sees them all, as in the daemon).
+    const double period_ns = 1e9 / config.timing.rate_hz;
+    int cycles = static_cast<int>(std::floor(static_cast<double>(end_ns) / period_ns)) + 1;
+    if (f.frames > 0) cycles = std::min(cycles, f.frames);
+    std::vector<int> next(readers.size(), 0);
+    for (int k = 0; k < cycles; ++k) {
+      const auto now_ns = static_cast<std::int64_t>(std::llround(k * period_ns));
+      for (std::size_t c = 0; c < readers.size(); ++c) {
+        const capture::RecordingCamera& r = readers[c]->recording();
+        for (; next[c] < readers[c]->frames() && r.frames[next[c]].time_ns <= now_ns; ++next[c]) {
+          if (!readers[c]->ReadFrame(next[c], &frame)) {
+            ++missing;
+            continue;
+          }
+          pipeline.Feed(static_cast<int>(c), frame);
+        }
+      }
+      last = pipeline.Step(now_ns);
+      degraded += last->health.degraded ? 1 : 0;
+      AddSnapshot(*last, &digest);
+    }
+    std::printf("replay: %d cycles at %g Hz over %.3f s of %zu recorded cameras, %" PRIu64
+                " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
+                cycles, config.timing.rate_hz, end_ns * 1e-9, readers.size(), missing, degraded);
   }
-  std::printf("replay: %d frame sets of %zu cameras, %" PRIu64
-              " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
-              frames, readers.size(), missing, degraded);
   if (f.digest || !f.expect.empty()) std::printf("digest %s\n", digest.Hex().c_str());
   if (!f.snapshot.empty() && last) {
     std::vector<SnapshotBox> boxes;
@@ -150,7 +188,8 @@ void RegisterReplay(CLI::App& app, int* exit_code) {
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--threads", flags->threads, "Octree threads (0: the config's)")
       ->check(CLI::Range(0, 64));
-  cmd->add_option("--frames", flags->frames, "Replay at most this many frame sets (0: all)")
+  cmd->add_option("--frames", flags->frames,
+                  "Replay at most this many frame sets, or cycles of a recorded recording (0: all)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_flag("--digest", flags->digest, "Print a digest of the output stream");
   cmd->add_option("--expect", flags->expect, "Fail (exit 1) unless the digest equals this");

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <numbers>
+#include <string>
 
 #include <Eigen/Geometry>
 #include <opencv2/imgcodecs.hpp>
@@ -60,6 +62,58 @@ ViewCamera MakeViewCamera(const common::Box3& b, int size_px, cv::Point2d origin
   return cam;
 }
 
+/// Tracks over the three views: the ellipse of each track's ellipsoid in the
+/// top and side views (it is axis-aligned), the convex outline of its
+/// projected surface in the perspective view, the id next to each.
+template <typename TopFn, typename SideFn>
+void DrawTracks(const std::vector<SnapshotTrack>& tracks, TopFn top, SideFn side,
+                const ViewCamera& view, double px_per_m, cv::Mat* img) {
+  const cv::Scalar colour(200, 0, 200);
+  for (const SnapshotTrack& t : tracks) {
+    const int thickness = t.occluded ? 1 : 2;
+    const Eigen::Vector3d& c = t.centre_W;
+    const Eigen::Vector3d& h = t.half_axes_m;
+    const std::string label = "#" + std::to_string(t.id);
+    auto axes = [&](double a, double b) {
+      return cv::Size(std::max(1, static_cast<int>(std::lround(a * px_per_m))),
+                      std::max(1, static_cast<int>(std::lround(b * px_per_m))));
+    };
+    auto put_label = [&](cv::Point at) {
+      cv::putText(*img, label, at, cv::FONT_HERSHEY_SIMPLEX, 0.5, colour, 1 + (thickness > 1));
+    };
+    cv::ellipse(*img, top(c.x(), c.y()), axes(h.x(), h.y()), 0, 0, 360, colour, thickness,
+                cv::LINE_AA);
+    const Eigen::Vector3d ahead = c + 0.5 * t.velocity_W_mps;
+    if ((ahead - c).head<2>().norm() * px_per_m >= 3) {
+      cv::arrowedLine(*img, top(c.x(), c.y()), top(ahead.x(), ahead.y()), colour, 1, cv::LINE_AA);
+    }
+    put_label(top(c.x() + h.x(), c.y() + h.y()));
+    cv::ellipse(*img, side(c.x(), c.z()), axes(h.x(), h.z()), 0, 0, 360, colour, thickness,
+                cv::LINE_AA);
+    put_label(side(c.x() + h.x(), c.z() + h.z()));
+    // Perspective: surface points in front of the view camera, then their hull.
+    std::vector<cv::Point> projected;
+    constexpr int kAround = 32, kUp = 16;
+    for (int i = 0; i <= kUp; ++i) {
+      const double polar = std::numbers::pi * i / kUp;
+      for (int j = 0; j < kAround; ++j) {
+        const double azimuth = 2 * std::numbers::pi * j / kAround;
+        const Eigen::Vector3d p = c + h.cwiseProduct(Eigen::Vector3d(
+                                          std::sin(polar) * std::cos(azimuth),
+                                          std::sin(polar) * std::sin(azimuth), std::cos(polar)));
+        if (view.ToCamera(p).z() > 0.05) projected.push_back(view.Project(p));
+      }
+    }
+    if (projected.size() < 3) continue;
+    std::vector<cv::Point> hull;
+    cv::convexHull(projected, hull);
+    cv::polylines(*img, hull, true, colour, thickness, cv::LINE_AA);
+    if (view.ToCamera(c + Eigen::Vector3d(0, 0, h.z())).z() > 0.05) {
+      put_label(view.Project(c + Eigen::Vector3d(0, 0, h.z())) + cv::Point(4, -4));
+    }
+  }
+}
+
 }  // namespace
 
 std::vector<SnapshotBox> LeafBoxes(const octree::Octree& tree) {
@@ -76,7 +130,8 @@ std::vector<SnapshotBox> LeafBoxes(const octree::Octree& tree) {
 void WriteSnapshotPicture(const std::vector<SnapshotBox>& input, const common::Box3& b,
                           const std::vector<geometry::CameraModel>& cameras,
                           const std::vector<geometry::TriangleMesh>& obstacles,
-                          const std::string& caption, const std::string& path) {
+                          const std::string& caption, const std::string& path,
+                          const std::vector<SnapshotTrack>& tracks) {
   const Eigen::Vector3d size = b.Size();
   const double px_per_m = 520.0 / std::max(size.x(), size.y());
   const int margin = 40;
@@ -199,6 +254,7 @@ void WriteSnapshotPicture(const std::vector<SnapshotBox>& input, const common::B
       cv::circle(img, view.Project(c), 6, cv::Scalar(200, 80, 0), cv::FILLED);
     }
   }
+  DrawTracks(tracks, top, side, view, px_per_m, &img);
   const cv::Scalar black(0, 0, 0);
   cv::putText(img, "top view (x right, y up)", cv::Point(margin, margin + 18),
               cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1);
@@ -208,8 +264,8 @@ void WriteSnapshotPicture(const std::vector<SnapshotBox>& input, const common::B
               cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1);
   cv::putText(img,
               "red to orange: occupied (by height), grey: occluded (top view: below 2 m), green: "
-              "obstacles, blue: cameras. " +
-                  caption,
+              "obstacles, blue: cameras" +
+                  std::string(tracks.empty() ? ". " : ", magenta: tracks (#id). ") + caption,
               cv::Point(margin, img.rows - 14), cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1);
   bool ok = false;
   try {

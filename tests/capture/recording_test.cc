@@ -1,0 +1,302 @@
+// The recording format: what RecordingWriter writes reads back exactly
+// (pixels, stamps, device stamps, indices, calibration), write errors are
+// counted and the recording goes on, a cut-short index still reads, bad
+// indexes are reported with file and line, and the replay source plays the
+// record layout in real time and as fast as possible, and the synth layout as
+// before.
+#include "capture/recording.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "capture/replay_source.h"
+#include "common/config_error.h"
+#include "geometry/camera_yaml.h"
+#include "silhouette/mask_io.h"
+
+namespace hg::capture {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+geometry::CameraModel Camera(const std::string& name, int width, int height) {
+  geometry::CameraModel m;
+  m.name = name;
+  m.width = width;
+  m.height = height;
+  m.K << 90.5, 0, (width - 1) / 2.0, 0, 91.25, (height - 1) / 2.0, 0, 0, 1;
+  m.distortion = {-0.1, 0.01, 0.001, -0.002, 0.0};
+  m.t_CW = Eigen::Vector3d(0.1, -0.2, 3.0);
+  return m;
+}
+
+Frame RandomFrame(FrameKind kind, int width, int height, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  Frame f;
+  f.kind = kind;
+  std::vector<std::uint8_t>& pixels = kind == FrameKind::kRgb ? f.rgb.pixels : f.grey.pixels;
+  if (kind == FrameKind::kRgb) {
+    f.rgb.width = width;
+    f.rgb.height = height;
+    pixels.resize(static_cast<std::size_t>(width) * height * 3);
+  } else {
+    f.grey.width = width;
+    f.grey.height = height;
+    pixels.resize(static_cast<std::size_t>(width) * height);
+  }
+  for (auto& p : pixels) p = static_cast<std::uint8_t>(rng());
+  if (kind == FrameKind::kMask) {
+    for (auto& p : pixels) p = p > 127 ? 255 : 0;
+  }
+  return f;
+}
+
+class RecordingTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           std::string("hg_recording_")
+               .append(std::to_string(::getpid()))
+               .append("_")
+               .append(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+// Every kind of frame in every image format: file extensions per format
+// (mono, rgb, mask).
+struct FormatCase {
+  ImageFormat format;
+  const char* extension[3];
+};
+constexpr FormatCase kFormats[] = {{ImageFormat::kPng, {"png", "png", "png"}},
+                                   {ImageFormat::kPnm, {"pgm", "ppm", "pgm"}},
+                                   {ImageFormat::kAuto, {"pgm", "ppm", "png"}}};
+
+// Writes 4 frames of a mono, an RGB and a mask camera and reads them back:
+// pixels, stamps, device stamps, indices, file names and calibration.
+void CheckRoundTrip(ImageFormat format, const char* const (&extension)[3], const std::string& dir) {
+  const std::vector<geometry::CameraModel> models = {Camera("mono", 31, 17), Camera("rgb", 20, 10),
+                                                     Camera("mask", 16, 9)};
+  const FrameKind kinds[] = {FrameKind::kMono, FrameKind::kRgb, FrameKind::kMask};
+  const std::int64_t t0 = 1'700'000'000'000'000'000;
+  std::vector<std::vector<Frame>> written(3);
+  {
+    RecordingWriter writer(dir, models, "test", "a note", format);
+    for (int c = 0; c < 3; ++c) {
+      for (std::uint64_t i = 0; i < 4; ++i) {
+        Frame f = RandomFrame(kinds[c], models[c].width, models[c].height, 10 * c + i);
+        // The mask camera starts first: it sets recording time 0.
+        f.stamp_ns =
+            t0 + static_cast<std::int64_t>(i) * 40'000'000 + (c == 2 ? 0 : 7'000'000 * c + 1);
+        f.index = 500 + i;
+        const std::optional<std::int64_t> device =
+            c == 1 ? std::optional<std::int64_t>(123'456'789 + i) : std::nullopt;
+        ASSERT_TRUE(writer.Write(c, 2 * i, f, device)) << writer.stats(c).last_error;
+        written[c].push_back(f);
+      }
+    }
+    std::string error;
+    EXPECT_TRUE(writer.Finish(&error)) << error;
+    EXPECT_EQ(writer.stats(1).kept, 4U);
+  }
+  EXPECT_EQ(RecordingCameraNames(dir), (std::vector<std::string>{"mono", "rgb", "mask"}));
+  const auto cameras = geometry::LoadCamerasFile(dir + "/cameras.yaml");
+  ASSERT_EQ(cameras.size(), 3U);
+  EXPECT_EQ(cameras[0].K, models[0].K);
+  EXPECT_EQ(cameras[0].distortion, models[0].distortion);
+  EXPECT_EQ(cameras[0].t_CW, models[0].t_CW);
+
+  for (int c = 0; c < 3; ++c) {
+    const RecordingCamera rec = ReadRecordingCamera(dir, models[c].name);
+    EXPECT_EQ(rec.layout, RecordingLayout::kRecord);
+    EXPECT_EQ(rec.kind, kinds[c]);
+    EXPECT_EQ(rec.width, models[c].width);
+    EXPECT_EQ(rec.height, models[c].height);
+    EXPECT_EQ(rec.start_ns, t0);
+    EXPECT_EQ(rec.lost, 0U);
+    EXPECT_NEAR(rec.rate_hz, 25.0, 1e-9);
+    ASSERT_EQ(rec.frames.size(), 4U);
+    ReplaySource source(rec, SimClock{});  // Epoch 0: stamps are recording times.
+    for (std::size_t i = 0; i < 4; ++i) {
+      const RecordedFrame& rf = rec.frames[i];
+      EXPECT_EQ(rf.stamp_ns, written[c][i].stamp_ns);
+      EXPECT_EQ(rf.time_ns, written[c][i].stamp_ns - t0);
+      EXPECT_EQ(rf.source_index, 500 + i);
+      EXPECT_EQ(rf.device_stamp_ns.has_value(), c == 1);
+      if (c == 1) {
+        EXPECT_EQ(*rf.device_stamp_ns, 123'456'789 + static_cast<std::int64_t>(i));
+      }
+      char name[32];
+      std::snprintf(name, sizeof(name), "%06zu.%s", 2 * i, extension[c]);
+      EXPECT_EQ(rf.file, std::string("frames/") + models[c].name + "/" + name);
+      Frame got;
+      ASSERT_TRUE(source.ReadFrame(static_cast<int>(i), &got));
+      EXPECT_EQ(got.kind, kinds[c]);
+      EXPECT_EQ(got.stamp_ns, rf.time_ns);
+      EXPECT_EQ(got.index, 500 + i);
+      if (kinds[c] == FrameKind::kRgb) {
+        EXPECT_EQ(got.rgb.width, models[c].width);
+        EXPECT_EQ(got.rgb.pixels, written[c][i].rgb.pixels);
+      } else {
+        EXPECT_EQ(got.grey.width, models[c].width);
+        EXPECT_EQ(got.grey.pixels, written[c][i].grey.pixels);
+      }
+    }
+  }
+}
+
+TEST_F(RecordingTest, WritesAndReadsBackEveryKindExactly) {
+  for (const FormatCase& format : kFormats) {
+    SCOPED_TRACE(ToString(format.format));
+    CheckRoundTrip(format.format, format.extension, (dir_ / ToString(format.format)).string());
+  }
+}
+
+// A frame whose file cannot be written (a folder stands where it would go)
+// is counted with the reason; the frames after it are kept, the index skips
+// its number, and the manifest reports the loss.
+TEST_F(RecordingTest, WriteErrorIsCountedAndTheRecordingGoesOn) {
+  RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test", "", ImageFormat::kPnm);
+  fs::create_directories(dir_ / "frames" / "cam" / "000001.pgm");
+  for (std::uint64_t i = 0; i < 3; ++i) {
+    Frame f = RandomFrame(FrameKind::kMono, 8, 6, i);
+    f.stamp_ns = 1000 + static_cast<std::int64_t>(i);
+    EXPECT_EQ(writer.Write(0, i, f), i != 1);
+  }
+  writer.CountLost(0, FrameLoss::kQueueFull, 2);
+  EXPECT_EQ(writer.stats(0).kept, 2U);
+  EXPECT_EQ(writer.stats(0).write_errors, 1U);
+  EXPECT_EQ(writer.stats(0).lost(), 3U);
+  EXPECT_NE(writer.stats(0).last_error.find("000001.pgm"), std::string::npos)
+      << writer.stats(0).last_error;
+  ASSERT_TRUE(writer.Finish());
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "cam");
+  ASSERT_EQ(rec.frames.size(), 2U);
+  EXPECT_EQ(rec.frames[1].file, "frames/cam/000002.pgm");
+  EXPECT_EQ(rec.lost, 3U);
+  // A frame of another size than the camera's first is refused.
+  EXPECT_FALSE(writer.Write(0, 5, RandomFrame(FrameKind::kMono, 9, 6, 1)));
+}
+
+TEST_F(RecordingTest, RefusesAFolderThatHoldsARecording) {
+  { RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test"); }
+  EXPECT_THROW(RecordingWriter(dir_.string(), {Camera("cam", 8, 6)}, "test"), common::ConfigError);
+}
+
+// A half-written last index line (a crash while writing) is left out; a bad
+// line is an error naming the file and the line.
+TEST_F(RecordingTest, CutShortIndexReadsAndBadLinesAreReported) {
+  {
+    RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
+    for (std::uint64_t i = 0; i < 2; ++i) {
+      Frame f = RandomFrame(FrameKind::kMask, 8, 6, i);
+      f.stamp_ns = 5000 + static_cast<std::int64_t>(i);
+      ASSERT_TRUE(writer.Write(0, i, f));
+    }
+  }
+  const fs::path index = dir_ / "frames" / "cam" / "index.csv";
+  std::ofstream(index, std::ios::app) << "2,5002,,2,0000";  // No newline: cut short.
+  EXPECT_EQ(ReadRecordingCamera(dir_.string(), "cam").frames.size(), 2U);
+  std::ofstream(index, std::ios::app) << "02.png\nthree,5003,,3,000003.png\n";
+  try {
+    (void)ReadRecordingCamera(dir_.string(), "cam");
+    FAIL() << "expected a ConfigError";
+  } catch (const common::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find(index.string() + ":5: "), std::string::npos) << e.what();
+  }
+  EXPECT_THROW((void)ReadRecordingCamera(dir_.string(), "nope"), common::ConfigError);
+}
+
+// Real time: frame i at its recording time after the clock's start, stamped
+// with the clock's epoch plus that time. Fast: every frame at once, in order,
+// stamped on delivery.
+TEST_F(RecordingTest, ReplaysRecordLayoutInRealTimeAndFast) {
+  {
+    RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
+    for (std::uint64_t i = 0; i < 5; ++i) {
+      Frame f = RandomFrame(FrameKind::kMono, 8, 6, i);
+      f.stamp_ns = 9'000'000'000 + static_cast<std::int64_t>(i) * 50'000'000;  // 20 Hz.
+      f.index = i;
+      ASSERT_TRUE(writer.Write(0, i, f));
+    }
+  }
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "cam");
+  {
+    const SimClock clock = SimClock::Now();
+    ReplaySource source(rec, clock, ReplayPacing::kRealtime);
+    Frame f;
+    std::vector<std::uint64_t> got;
+    for (int tries = 0; tries < 100 && got.size() < 5; ++tries) {
+      if (!source.Next(&f, 100ms)) continue;
+      EXPECT_EQ(f.stamp_ns, clock.epoch_ns + static_cast<std::int64_t>(f.index) * 50'000'000);
+      got.push_back(f.index);
+    }
+    EXPECT_FALSE(got.empty());
+    EXPECT_TRUE(std::is_sorted(got.begin(), got.end()));
+    EXPECT_EQ(got.back(), 4U);
+    EXPECT_FALSE(source.Next(&f, 50ms)) << "the recording has ended";
+  }
+  {
+    // The clock starts an hour from now: real time would deliver nothing.
+    SimClock clock = SimClock::Now();
+    clock.start += std::chrono::hours(1);
+    ReplaySource source(rec, clock, ReplayPacing::kFast);
+    Frame f;
+    for (std::uint64_t i = 0; i < 5; ++i) {
+      const std::int64_t before = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                      std::chrono::system_clock::now().time_since_epoch())
+                                      .count();
+      ASSERT_TRUE(source.Next(&f, 10ms));
+      EXPECT_EQ(f.index, i);
+      EXPECT_GE(f.stamp_ns, before);
+    }
+    EXPECT_FALSE(source.Next(&f, 10ms));
+  }
+}
+
+// The synth layout keeps its frame times: i / rate_hz plus the camera's
+// offset modulo the period, as `hullguard replay` digests depend on them.
+TEST_F(RecordingTest, ReadsTheSynthLayout) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 3, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a, time_offset_s: 0.04}\n  - {name: b}\n";
+  silhouette::WriteGreyImage((dir_ / "masks" / "a" / "000001.png").string(),
+                             common::ImageU8(6, 4, 255));
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "a");
+  EXPECT_EQ(rec.layout, RecordingLayout::kSynth);
+  EXPECT_EQ(rec.kind, FrameKind::kMask);
+  ASSERT_EQ(rec.frames.size(), 3U);
+  const double offset = 0.04 - 1.0 / 30.0;
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(rec.frames[i].time_ns,
+              std::chrono::duration_cast<std::chrono::nanoseconds>(
+                  std::chrono::duration<double>(i / 30.0) + std::chrono::duration<double>(offset))
+                  .count());
+  }
+  EXPECT_EQ(rec.frames[1].file, "masks/a/000001.png");
+  ReplaySource source(rec, SimClock{});
+  Frame f;
+  EXPECT_FALSE(source.ReadFrame(0, &f));  // Missing file.
+  ASSERT_TRUE(source.ReadFrame(1, &f));
+  EXPECT_EQ(f.grey.width, 6);
+  EXPECT_EQ(f.stamp_ns, rec.frames[1].time_ns);
+  EXPECT_EQ(RecordingCameraNames(dir_.string()), (std::vector<std::string>{"a", "b"}));
+}
+
+}  // namespace
+}  // namespace hg::capture

@@ -1,0 +1,292 @@
+// End-to-end tests of recording: `hullguard record` on simulated cameras, the
+// recording replayed by `hullguard replay` (the same digest twice), a frame
+// that cannot be written reported in the summary and the exit code, and the
+// daemon's black box dumping on SIGUSR1 and when the status turns degraded.
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "capture/recording.h"
+#include "geometry/camera_yaml.h"
+#include "support/run_tool.h"
+
+extern char** environ;
+
+namespace hg {
+namespace {
+
+namespace fs = std::filesystem;
+using namespace std::chrono_literals;
+
+const std::string kScene = std::string(HG_SOURCE_DIR) + "/tests/data/small_cell.yaml";
+
+// A daemon config with the camera blocks of tests/data/small_cell.yaml, each
+// with `source` as its source map, and `extra` (more sections) at the end.
+std::string Config(const std::string& source, const std::string& extra = "") {
+  std::string cameras;
+  const char* blocks[] = {
+      "{name: cam0, width: 320, height: 180, position: [-0.3, -0.3, 3.6], look_at: [2, 2, 1], "
+      "K: &k [180.59645105620495, 0, 159.5, 0, 180.59645105620495, 89.5, 0, 0, 1], ",
+      "{name: cam1, width: 320, height: 180, position: [4.3, 4.3, 3.6], look_at: [2, 2, 1], "
+      "K: *k, ",
+      "{name: cam2, width: 320, height: 180, position: [4.3, -0.3, 3.6], look_at: [2, 2, 1], "
+      "K: *k, "};
+  for (int c = 0; c < 3; ++c) {
+    cameras += std::string("  - ") + blocks[c] + "source: " + source + "}\n";
+  }
+  return "cell: {bounds: {min: [0, 0, 0], max: [4, 4, 4]}}\n"
+         "octree: {depth: 6, publish_depth: 6}\n"
+         "timing: {rate_hz: 30, deadline_ms: 25, camera_timeout_ms: 200}\n"
+         "dds: {enabled: false}\n"
+         "cameras:\n" +
+         cameras + extra;
+}
+
+std::string ReadFile(const fs::path& path) {
+  std::stringstream text;
+  text << std::ifstream(path).rdbuf();
+  return text.str();
+}
+
+class RecordCliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           std::string("hg_record_")
+               .append(std::to_string(::getpid()))
+               .append("_")
+               .append(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    std::ofstream(Path("sim.yaml")) << Config("{type: sim, scene: " + kScene + "}");
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  static testing::ProcessResult Hullguard(const std::string& args) {
+    return testing::RunTool(HG_HULLGUARD_BIN, args);
+  }
+  // `hullguard replay --digest` of a recording; the digest, empty on failure.
+  std::string ReplayDigest(const std::string& recording) {
+    const std::string config = Path("replay_" + fs::path(recording).filename().string() + ".yaml");
+    std::ofstream(config) << Config("{type: replay, directory: " + recording + "}");
+    const auto r =
+        Hullguard("replay --config " + config + " --recording " + recording + " --digest");
+    EXPECT_EQ(r.code, 0) << r.out << r.err;
+    EXPECT_NE(r.out.find(" cycles at 30 Hz over "), std::string::npos) << r.out;
+    std::smatch m;
+    const std::regex digest("digest ([0-9a-f]{16})");
+    return std::regex_search(r.out, m, digest) ? std::string(m[1]) : std::string();
+  }
+  fs::path dir_;
+};
+
+// Checks a recording of the three cameras: every frame's stamp after the
+// previous one, frame numbers rising, the calibration next to it; the
+// cameras' capture offsets (0, 6 and 12 ms in the scene) show in the stamps.
+void CheckRecording(const std::string& dir, std::size_t min_frames) {
+  std::vector<capture::RecordingCamera> cams;
+  for (const char* name : {"cam0", "cam1", "cam2"}) {
+    cams.push_back(capture::ReadRecordingCamera(dir, name));
+    const capture::RecordingCamera& rec = cams.back();
+    EXPECT_EQ(rec.kind, capture::FrameKind::kMask);
+    EXPECT_EQ(rec.width, 320);
+    EXPECT_GE(rec.frames.size(), min_frames) << name;
+    for (std::size_t i = 1; i < rec.frames.size(); ++i) {
+      EXPECT_GT(rec.frames[i].stamp_ns, rec.frames[i - 1].stamp_ns) << name << " frame " << i;
+      EXPECT_GT(rec.frames[i].file, rec.frames[i - 1].file);
+    }
+  }
+  // The sim source captures at epoch + offset + k * 33333333 ns.
+  constexpr std::int64_t kPeriod = 33'333'333;
+  for (int c = 1; c < 3; ++c) {
+    if (cams[c].frames.empty() || cams[0].frames.empty()) continue;
+    const std::int64_t d = cams[c].frames[0].stamp_ns - cams[0].frames[0].stamp_ns;
+    EXPECT_EQ(((d % kPeriod) + kPeriod) % kPeriod, 6'000'000 * c) << "cam" << c;
+  }
+  const auto models = geometry::LoadCamerasFile((fs::path(dir) / "cameras.yaml").string());
+  ASSERT_EQ(models.size(), 3U);
+  EXPECT_EQ(models[2].name, "cam2");
+  EXPECT_NEAR(models[2].K(0, 0), 180.59645105620495, 1e-12);
+}
+
+TEST_F(RecordCliTest, RecordsSimCamerasAndReplaysDeterministically) {
+  const auto r =
+      Hullguard("record --config " + Path("sim.yaml") + " --out " + Path("rec") + " --seconds 2");
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("cam2: "), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("last write error"), std::string::npos) << r.out;
+  EXPECT_TRUE(fs::exists(dir_ / "rec" / "config.yaml"));
+  CheckRecording(Path("rec"), 3);
+  const std::string first = ReplayDigest(Path("rec"));
+  EXPECT_FALSE(first.empty());
+  EXPECT_EQ(ReplayDigest(Path("rec")), first);
+
+  // The daemon plays it in real time (`source: replay`): every camera is live
+  // at the first health report, 1 s in.
+  std::ofstream(Path("daemon.yaml")) << Config("{type: replay, directory: " + Path("rec") + "}");
+  const auto daemon =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--config " + Path("daemon.yaml") + " --duration 1.5");
+  EXPECT_EQ(daemon.code, 0) << daemon.err;
+  EXPECT_TRUE(std::regex_search(
+      daemon.err, std::regex("cycle [0-9]+ ok .* cam0 ok [0-9]+ fps cam1 ok [0-9]+ fps cam2 ok")))
+      << daemon.err;
+
+  // A folder that holds a recording is not overwritten.
+  const auto again =
+      Hullguard("record --config " + Path("sim.yaml") + " --out " + Path("rec") + " --seconds 0.2");
+  EXPECT_EQ(again.code, 2);
+  EXPECT_NE(again.err.find("already holds a recording"), std::string::npos) << again.err;
+}
+
+// A frame that cannot be written (a folder stands where cam0's third frame
+// goes) is reported per camera and turns the exit code to 1; the other frames
+// are kept.
+TEST_F(RecordCliTest, FrameThatCannotBeWrittenIsReported) {
+  fs::create_directories(dir_ / "rec" / "frames" / "cam0" / "000002.png");
+  const auto r =
+      Hullguard("record --config " + Path("sim.yaml") + " --out " + Path("rec") + " --seconds 1");
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  EXPECT_NE(r.out.find("lost (queue full 0, write errors 1)"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("last write error: "), std::string::npos) << r.out;
+  EXPECT_NE(r.err.find("1 frames could not be kept"), std::string::npos) << r.err;
+  const capture::RecordingCamera cam0 = capture::ReadRecordingCamera(Path("rec"), "cam0");
+  EXPECT_EQ(cam0.lost, 1U);
+  for (const capture::RecordedFrame& f : cam0.frames) EXPECT_NE(f.file, "frames/cam0/000002.png");
+  EXPECT_EQ(capture::ReadRecordingCamera(Path("rec"), "cam1").lost, 0U);
+}
+
+// The black box's rings are sized at load: too long a history for the memory
+// allowed is refused with the file, the line and the numbers.
+TEST_F(RecordCliTest, BlackBoxLargerThanItsMemoryIsRefusedAtLoad) {
+  std::ofstream(Path("big.yaml")) << Config("{type: sim, scene: " + kScene + "}",
+                                            "blackbox:\n  max_memory_mb: 100\n  seconds: 60\n");
+  const auto r = testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + Path("big.yaml"));
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  // 3 cameras x 1801 slots x 57600 bytes = 297 MiB of rings.
+  EXPECT_NE(r.err.find(Path("big.yaml") + ":11: blackbox.seconds: 60 s of every camera need 297 "
+                                          "MiB of rings, twice that while a dump copies them, "
+                                          "more than blackbox.max_memory_mb = 100 (largest: cam0 "
+                                          "320x180 mask at 30 Hz, 99 MiB)"),
+            std::string::npos)
+      << r.err;
+  std::ofstream(Path("small.yaml")) << Config("{type: sim, scene: " + kScene + "}",
+                                              "blackbox: {seconds: 5, max_memory_mb: 100}\n");
+  EXPECT_EQ(testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + Path("small.yaml")).code, 0);
+}
+
+/// hullguardd in the background, its stderr in a file.
+class Daemon {
+ public:
+  Daemon(const std::string& config, double duration_s, const std::string& log) : log_(log) {
+    posix_spawn_file_actions_t actions;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawn_file_actions_addopen(&actions, 2, log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+    std::vector<std::string> args = {HG_HULLGUARDD_BIN, "--config", config, "--duration",
+                                     std::to_string(duration_s)};
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    EXPECT_EQ(posix_spawn(&pid_, HG_HULLGUARDD_BIN, &actions, nullptr, argv.data(), environ), 0);
+    posix_spawn_file_actions_destroy(&actions);
+  }
+  ~Daemon() {
+    if (pid_ > 0) {
+      kill(pid_, SIGTERM);
+      Wait();
+    }
+  }
+  Daemon(const Daemon&) = delete;
+  Daemon& operator=(const Daemon&) = delete;
+
+  void Signal(int signal) const { kill(pid_, signal); }
+  int Wait() {
+    int status = 0;
+    if (pid_ > 0 && waitpid(pid_, &status, 0) == pid_) pid_ = -1;
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  /// Waits (up to 30 s) for a log line matching `pattern`; its first group.
+  std::string WaitFor(const std::string& pattern) const {
+    const std::regex re(pattern);
+    for (const auto give_up = std::chrono::steady_clock::now() + 30s;
+         std::chrono::steady_clock::now() < give_up; std::this_thread::sleep_for(50ms)) {
+      std::smatch m;
+      const std::string log = ReadFile(log_);
+      if (std::regex_search(log, m, re)) return m.size() > 1 ? std::string(m[1]) : m.str();
+    }
+    ADD_FAILURE() << "no line matching '" << pattern << "' in the daemon's log:\n"
+                  << ReadFile(log_);
+    return {};
+  }
+
+ private:
+  std::string log_;
+  pid_t pid_ = -1;
+};
+
+// The daemon keeps 1 s of every camera: SIGUSR1 dumps it; cam2 stopping
+// (fault injection) turns the status degraded and dumps again. Both dumps are
+// recordings that replay.
+TEST_F(RecordCliTest, DaemonBlackBoxDumpsOnSigusr1AndWhenDegraded) {
+  const std::string box = Path("blackbox");
+  std::ofstream(Path("daemon.yaml"))
+      << Config("{type: sim, scene: " + kScene + "}",
+                "blackbox: {seconds: 1, dir: " + box + ", on_degraded: true, max_memory_mb: 64}\n");
+  // cam2 stops 3 s after start.
+  std::string text = ReadFile(Path("daemon.yaml"));
+  const std::string cam2 = "source: {type: sim, scene: " + kScene + "}}\n";
+  const std::size_t at = text.rfind(cam2);
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, cam2.size(), "source: {type: sim, scene: " + kScene + ", stop_after_s: 3}}\n");
+  std::ofstream(Path("daemon.yaml")) << text;
+
+  Daemon daemon(Path("daemon.yaml"), 6.0, Path("hullguardd.log"));
+  daemon.WaitFor("hullguardd: cycle [0-9]+ ok");
+  daemon.Signal(SIGUSR1);
+  const std::string dumped = " wrote [0-9]+ frames \\([0-9.]+ s, [0-9]+ torn\\) to (\\S+)";
+  const std::string manual = daemon.WaitFor("black box \\(SIGUSR1\\):" + dumped);
+  EXPECT_EQ(daemon.Wait(), 0);
+  ASSERT_FALSE(manual.empty());
+  EXPECT_EQ(fs::path(manual).parent_path(), fs::path(box));
+  // 1 s at 30 Hz: 31 slots a camera.
+  CheckRecording(manual, 5);
+  for (const char* name : {"cam0", "cam1", "cam2"}) {
+    EXPECT_LE(capture::ReadRecordingCamera(manual, name).frames.size(), 31U);
+  }
+  EXPECT_FALSE(ReplayDigest(manual).empty());
+
+  // A degraded dump (a deadline miss on a busy machine may add others) in
+  // which cam2's last frame is older than cam0's by more than its timeout.
+  const std::string log = ReadFile(Path("hullguardd.log"));
+  const std::regex degraded("black box \\(degraded\\):" + dumped);
+  int dumps = 0;
+  bool cam2_lags = false;
+  for (auto it = std::sregex_iterator(log.begin(), log.end(), degraded);
+       it != std::sregex_iterator(); ++it) {
+    ++dumps;
+    const std::string dir = (*it)[1];
+    const auto last = [&](const char* name) {
+      const auto rec = capture::ReadRecordingCamera(dir, name);
+      return rec.frames.empty() ? std::int64_t{0} : rec.frames.back().stamp_ns;
+    };
+    cam2_lags = cam2_lags || last("cam2") + 150'000'000 < last("cam0");
+  }
+  EXPECT_GE(dumps, 1) << log;
+  EXPECT_TRUE(cam2_lags) << log;
+}
+
+}  // namespace
+}  // namespace hg

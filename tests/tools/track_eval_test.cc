@@ -1,0 +1,132 @@
+// End-to-end test of `hullguard track-eval`: a small scene file, the real
+// binary (render, reconstruct, publish, track, score), its JSON read back.
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "support/run_tool.h"
+
+namespace hg {
+namespace {
+
+namespace fs = std::filesystem;
+
+// Four small cameras in the upper corners of a 3 m cell with a table; one
+// person walks past the table, another stands and then crouches.
+constexpr char kScene[] =
+    R"(scene: {name: tiny_tracking, bounds: {min: [0, 0, 0], max: [3, 3, 2.5]}, rate_hz: 15}
+cameras:
+  - {name: a, width: 480, height: 270, K: [270, 0, 239.5, 0, 270, 134.5, 0, 0, 1],
+     position: [-0.3, -0.3, 2.4], look_at: [1.5, 1.5, 0.8]}
+  - {name: b, width: 480, height: 270, K: [270, 0, 239.5, 0, 270, 134.5, 0, 0, 1],
+     position: [3.3, 3.3, 2.4], look_at: [1.5, 1.5, 0.8]}
+  - {name: c, width: 480, height: 270, K: [270, 0, 239.5, 0, 270, 134.5, 0, 0, 1],
+     position: [3.3, -0.3, 2.4], look_at: [1.5, 1.5, 0.8]}
+  - {name: d, width: 480, height: 270, K: [270, 0, 239.5, 0, 270, 134.5, 0, 0, 1],
+     position: [-0.3, 3.3, 2.4], look_at: [1.5, 1.5, 0.8]}
+obstacles:
+  - {name: table, box: {min: [2.0, 0.3, 0.70], max: [2.8, 1.0, 0.75]}}
+people:
+  - name: walker
+    start: [0.6, 0.6]
+    script:
+      - walk: {path: [[1.6, 1.4]], speed: 1.0}
+  - name: croucher
+    start: [0.8, 2.3]
+    script:
+      - stand: {duration: 0.6}
+      - crouch: {duration: 3}
+)";
+
+class TrackEvalTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           std::string("hg_track_eval_")
+               .append(std::to_string(::getpid()))
+               .append("_")
+               .append(::testing::UnitTest::GetInstance()->current_test_info()->name());
+    fs::create_directories(dir_);
+    std::ofstream(Path("tiny.yaml")) << kScene;
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
+  static testing::ProcessResult Hullguard(const std::string& args) {
+    return testing::RunTool(HG_HULLGUARD_BIN, args);
+  }
+  fs::path dir_;
+};
+
+// The text after "key": up to the next comma or brace.
+std::string JsonField(const std::string& json, const std::string& key) {
+  const auto at = json.find("\"" + key + "\": ");
+  EXPECT_NE(at, std::string::npos) << key << " in " << json;
+  if (at == std::string::npos) return "";
+  const auto start = at + key.size() + 4;
+  return json.substr(start, json.find_first_of(",}", start) - start);
+}
+
+double JsonNumber(const std::string& json, const std::string& key) {
+  const std::string field = JsonField(json, key);
+  return field.empty() || field == "null" ? -1e9 : std::stod(field);
+}
+
+TEST_F(TrackEvalTest, TracksTwoPeopleAndReportsPlausibleMetrics) {
+  const auto r = Hullguard("track-eval --scene " + Path("tiny.yaml") +
+                           " --frames 30 --depth 7 --publish-depth 6 --threads 2 --json --plot " +
+                           Path("plot.png"));
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  const std::string& j = r.out;
+  EXPECT_EQ(JsonField(j, "scene"), "\"tiny_tracking\"");
+  EXPECT_EQ(JsonNumber(j, "frames"), 30);
+  EXPECT_EQ(JsonNumber(j, "objects"), 60);  // Both people in the cell in every frame.
+  // Each frame's ground-truth objects are matched, missed, or both counts hold.
+  EXPECT_EQ(JsonNumber(j, "matches") + JsonNumber(j, "misses"), JsonNumber(j, "objects"));
+  // Both people are found at once and kept: at most the first frames of a
+  // birth are lost, nobody is followed by two tracks.
+  EXPECT_GE(JsonNumber(j, "mota"), 0.9);
+  EXPECT_LE(JsonNumber(j, "mota"), 1.0);
+  EXPECT_EQ(JsonNumber(j, "id_switches"), 0);
+  EXPECT_LE(JsonNumber(j, "false_positives"), 2);
+  EXPECT_GE(JsonNumber(j, "motp_m"), 0.0);
+  EXPECT_LE(JsonNumber(j, "motp_m"), 0.2);
+  EXPECT_EQ(JsonNumber(j, "births"), 2);
+  EXPECT_EQ(JsonNumber(j, "deaths"), 0);
+  EXPECT_GT(JsonNumber(j, "mean"), 0.0);  // tracking_ms.mean, the first "mean".
+  EXPECT_NE(j.find("\"tracking_ms_per_person\": {\"mean\": "), std::string::npos) << j;
+  EXPECT_NE(j.find("\"name\": \"walker\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"name\": \"croucher\""), std::string::npos) << j;
+  // The plot is a PNG.
+  std::ifstream png(Path("plot.png"), std::ios::binary);
+  ASSERT_TRUE(png.good());
+  std::string head(8, '\0');
+  png.read(head.data(), 8);
+  EXPECT_EQ(head, std::string("\x89PNG\r\n\x1a\n", 8));
+}
+
+TEST_F(TrackEvalTest, TextReportNamesTheMetrics) {
+  const auto r = Hullguard("track-eval --scene " + Path("tiny.yaml") +
+                           " --frames 4 --depth 6 --publish-depth 6");
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* key : {"MOTA", "MOTP", "ID switches", "misses", "false positives",
+                          "tracking time per frame", "per person"}) {
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+  }
+}
+
+TEST_F(TrackEvalTest, BadInputIsExitCodeTwo) {
+  EXPECT_EQ(Hullguard("track-eval --scene " + Path("missing.yaml")).code, 2);
+  const auto deep = Hullguard("track-eval --scene " + Path("tiny.yaml") +
+                              " --frames 3 --depth 6 --publish-depth 7");
+  EXPECT_EQ(deep.code, 2);
+  EXPECT_NE(deep.err.find("--publish-depth"), std::string::npos) << deep.err;
+  EXPECT_EQ(Hullguard("track-eval --scene " + Path("tiny.yaml") + " --threshold -1").code, 2);
+}
+
+}  // namespace
+}  // namespace hg
