@@ -106,6 +106,9 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
     std::snprintf(cam, sizeof(cam), " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
     line += cam;
     if (c.corrupt > 0) line += std::string(" corrupt ").append(std::to_string(c.corrupt));
+    // Transport trouble of a GigE Vision camera: lost packets, host too slow.
+    if (c.failed > 0) line += std::string(" failed ").append(std::to_string(c.failed));
+    if (c.underruns > 0) line += std::string(" underruns ").append(std::to_string(c.underruns));
     if (c.fault != 0) {
       line += std::string(" (").append(ToString(static_cast<capture::CameraFault>(c.fault))) + ")";
     }

@@ -742,6 +742,8 @@ bool AravisSource::Next(Frame* frame, milliseconds timeout) {
       // the frame arrived: stamping no later than that keeps the pipeline's
       // capture-skew dilation large enough.
       frame->stamp_ns = arrival_ns - active_->exposure_ns;
+      const guint64 device_ns = arv_buffer_get_timestamp(newest);
+      frame->device_stamp_ns = device_ns != 0 ? static_cast<std::int64_t>(device_ns) : -1;
       frame->index = index_++;
       if (!active_->first_frame_logged) {
         active_->first_frame_logged = true;

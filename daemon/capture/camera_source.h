@@ -25,7 +25,11 @@ struct Frame {
   common::ImageU8 grey;       ///< kMask and kMono.
   common::ImageRgb8 rgb;      ///< kRgb.
   std::int64_t stamp_ns = 0;  ///< Capture time, CLOCK_REALTIME.
-  std::uint64_t index = 0;    ///< Frame counter of the source.
+  /// The camera's own timestamp (GigE Vision: the device clock, ns since its
+  /// reset); -1 when the source has none. Kept in recordings, not used by the
+  /// pipeline, whose time base is stamp_ns.
+  std::int64_t device_stamp_ns = -1;
+  std::uint64_t index = 0;  ///< Frame counter of the source.
 };
 
 /// Counters of a source's own transport (GigE Vision streams); all zero for

@@ -318,6 +318,7 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   }
   const cv::Mat encoded(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());
   const bool sized = recording.width > 0;
+  frame->device_stamp_ns = recording.frames[index].device_stamp_ns.value_or(-1);
   if (recording.kind != FrameKind::kRgb) {
     const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE);
     if (img.empty() || !img.isContinuous()) return false;
@@ -471,6 +472,7 @@ bool RecordingWriter::Write(int camera, std::uint64_t number, const Frame& frame
     return Fail(&c, c.path + ": " + why);
   }
   char device[32] = "";
+  if (!device_stamp_ns && frame.device_stamp_ns >= 0) device_stamp_ns = frame.device_stamp_ns;
   if (device_stamp_ns) {
     std::snprintf(device, sizeof(device), "%lld", static_cast<long long>(*device_stamp_ns));
   }

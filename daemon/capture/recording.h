@@ -72,10 +72,9 @@ struct RecordingCamera {
 /// @throws common::ConfigError as ReadRecordingCamera.
 [[nodiscard]] std::vector<std::string> RecordingCameraNames(const std::string& directory);
 
-/// Decodes a frame file of `recording` into *frame (kind, size and pixels;
-/// stamps untouched), reusing its buffers and *bytes. False when the file is
-/// missing, unreadable, of another size than the manifest states, or not an
-/// image.
+/// Decodes a frame file of `recording` into *frame (kind, size, pixels and
+/// the recorded device stamp; the capture stamp untouched), reusing its buffers and *bytes. False
+/// when the file is missing, unreadable, of another size than the manifest states, or not an image.
 bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Frame* frame,
                        std::vector<unsigned char>* bytes, std::string* path);
 
@@ -143,7 +142,8 @@ class RecordingWriter {
   /// list) as its frame `number`: the recorder's count of frames the camera
   /// delivered, so that gaps in the numbers show the frames lost. False, and
   /// counted as a write error, when it cannot be written; the recording goes
-  /// on without it.
+  /// on without it. The device stamp is `device_stamp_ns` when given, else
+  /// the frame's own (none when it is negative).
   bool Write(int camera, std::uint64_t number, const Frame& frame,
              std::optional<std::int64_t> device_stamp_ns = std::nullopt);
 

@@ -180,6 +180,7 @@ TEST(AravisSourceTest, DeliversKnownMonoImagesWithIncreasingStamps) {
   Frame frame;
   ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
   std::int64_t last_stamp = 0;
+  std::int64_t last_device_stamp = -1;
   int last_offset = -1;
   std::uint64_t last_index = 0;
   long allocations = 0;
@@ -207,6 +208,9 @@ TEST(AravisSourceTest, DeliversKnownMonoImagesWithIncreasingStamps) {
     EXPECT_GT(frame.stamp_ns, last_stamp);
     // Stamped before it was delivered (at or before the end of exposure).
     EXPECT_LE(frame.stamp_ns, RealtimeNowNs());
+    // The camera's own timestamp is kept, and it advances too.
+    EXPECT_GT(frame.device_stamp_ns, last_device_stamp) << "frame " << n;
+    last_device_stamp = frame.device_stamp_ns;
     if (n > 0) {
       EXPECT_GT(frame.index, last_index);
     }

@@ -103,9 +103,10 @@ void CheckRoundTrip(ImageFormat format, const char* const (&extension)[3], const
         f.stamp_ns =
             t0 + static_cast<std::int64_t>(i) * 40'000'000 + (c == 2 ? 0 : 7'000'000 * c + 1);
         f.index = 500 + i;
-        const std::optional<std::int64_t> device =
-            c == 1 ? std::optional<std::int64_t>(123'456'789 + i) : std::nullopt;
-        ASSERT_TRUE(writer.Write(c, 2 * i, f, device)) << writer.stats(c).last_error;
+        // Camera 1 has a device clock (as a GigE Vision camera): the writer
+        // takes the frame's own device stamp.
+        f.device_stamp_ns = c == 1 ? 123'456'789 + static_cast<std::int64_t>(i) : -1;
+        ASSERT_TRUE(writer.Write(c, 2 * i, f)) << writer.stats(c).last_error;
         written[c].push_back(f);
       }
     }
@@ -148,6 +149,7 @@ void CheckRoundTrip(ImageFormat format, const char* const (&extension)[3], const
       EXPECT_EQ(got.kind, kinds[c]);
       EXPECT_EQ(got.stamp_ns, rf.time_ns);
       EXPECT_EQ(got.index, 500 + i);
+      EXPECT_EQ(got.device_stamp_ns, c == 1 ? 123'456'789 + static_cast<std::int64_t>(i) : -1);
       if (kinds[c] == FrameKind::kRgb) {
         EXPECT_EQ(got.rgb.width, models[c].width);
         EXPECT_EQ(got.rgb.pixels, written[c][i].rgb.pixels);

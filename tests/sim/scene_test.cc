@@ -7,6 +7,7 @@
 #include <iterator>
 #include <optional>
 #include <string>
+#include <system_error>
 #include <variant>
 #include <vector>
 
@@ -29,6 +30,16 @@ using common::ConfigError;
 
 constexpr double kPi = 3.14159265358979323846;
 
+/// The directories TestDir made, removed when the test program exits.
+struct TestDirs {
+  std::vector<fs::path> made;
+  ~TestDirs() {
+    std::error_code ignored;
+    for (const fs::path& dir : made) fs::remove_all(dir, ignored);
+  }
+};
+TestDirs g_test_dirs;
+
 /// A fresh directory for the running test; the process id keeps parallel runs apart.
 fs::path TestDir() {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
@@ -37,6 +48,7 @@ fs::path TestDir() {
                                         info->test_suite_name() + "_" + info->name());
   fs::remove_all(dir);
   fs::create_directories(dir);
+  g_test_dirs.made.push_back(dir);
   return dir;
 }
 
