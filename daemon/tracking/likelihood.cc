@@ -25,6 +25,27 @@ struct Span {
   int hi = -1;
 };
 
+/// Narrows `span` to the indices where the monotone predicate `inside` holds:
+/// it holds for small indices when `inside_for_small`, else for large ones.
+/// `t` estimates the index where it changes (may be far outside or not
+/// finite); the voxels next to the estimate are tested until the boundary is
+/// found, so the result is exact whatever the estimate's error.
+template <typename Inside>
+void ClipMonotone(double t, bool inside_for_small, Inside inside, Span* span) {
+  const double clamped = std::clamp(t, span->lo - 1.0, span->hi + 1.0);
+  if (inside_for_small) {  // Find the last inside voxel.
+    int a = std::clamp(FloorInt(clamped), span->lo - 1, span->hi);
+    while (a >= span->lo && !inside(a)) --a;
+    while (a + 1 <= span->hi && inside(a + 1)) ++a;
+    span->hi = a;
+  } else {  // Find the first inside voxel.
+    int a = std::clamp(CeilInt(clamped), span->lo, span->hi + 1);
+    while (a <= span->hi && !inside(a)) ++a;
+    while (a - 1 >= span->lo && inside(a - 1)) --a;
+    span->lo = a;
+  }
+}
+
 /// Narrows `span` to the voxels of the row (centres (CentreX(x), py, pz))
 /// inside half-space h. The predicate is monotone in x even in floating point
 /// (normal.x * x is monotone, adding s rounds monotonically), so the closed-form
@@ -38,20 +59,24 @@ void ClipToHalfSpace(const VoxelGrid& g, const HalfSpace& h, double py, double p
     if (!(s <= h.offset)) span->hi = span->lo - 1;
     return;
   }
-  // Index where the centre reaches the plane (may be far outside or not finite).
   const double t = ((h.offset - s) / nx - g.origin().x()) / g.voxel_m() - 0.5;
-  const double clamped = std::clamp(t, span->lo - 1.0, span->hi + 1.0);
-  if (nx > 0.0) {  // Inside for small x: find the last inside voxel.
-    int a = std::clamp(FloorInt(clamped), span->lo - 1, span->hi);
-    while (a >= span->lo && !inside(a)) --a;
-    while (a + 1 <= span->hi && inside(a + 1)) ++a;
-    span->hi = a;
-  } else {  // Inside for large x: find the first inside voxel.
-    int a = std::clamp(CeilInt(clamped), span->lo, span->hi + 1);
-    while (a <= span->hi && !inside(a)) ++a;
-    while (a - 1 >= span->lo && inside(a - 1)) --a;
-    span->lo = a;
+  ClipMonotone(t, nx > 0.0, inside, span);
+}
+
+/// The same for the voxels of the column (centres (px, py, CentreZ(z))), with
+/// HalfSpace::Contains' arithmetic: n.x px + (n.y py + n.z pz), monotone in z.
+void ClipColumnToHalfSpace(const VoxelGrid& g, const HalfSpace& h, double px, double py,
+                           Span* span) {
+  const double nz = h.normal.z();
+  const double a = h.normal.x() * px;
+  const double b = h.normal.y() * py;
+  auto inside = [&](int z) { return a + (b + nz * g.CentreZ(z)) <= h.offset; };
+  if (nz == 0.0) {
+    if (!inside(span->lo)) span->hi = span->lo - 1;
+    return;
   }
+  const double t = ((h.offset - a - b) / nz - g.origin().z()) / g.voxel_m() - 0.5;
+  ClipMonotone(t, nz > 0.0, inside, span);
 }
 
 /// One ellipsoid prepared for the row loops: reciprocals and the centre and
@@ -72,33 +97,151 @@ inline int FastFloor(double x) {
   return static_cast<int>(x + kOffset) - 1073741824;
 }
 
-/// Voxels x (unclamped) of one row whose centres satisfy dx^2 + q <= 1, with
-/// dx = (CentreX(x) - cx) / k: the closed-form ends, re-tested with that
-/// predicate where they fall within `tol` of a voxel centre. Precondition: q <= 1.
-inline Span RowSpan(const VoxelGrid& g, const Prepared& e, double q) {
-  const double w = std::sqrt(1.0 - q) * e.h_idx.x();
-  const double t_lo = e.c_idx.x() - w;
-  const double t_hi = e.c_idx.x() + w;
-  auto inside = [&](int x) {
-    const double dx = (g.CentreX(x) - e.c.x()) * e.inv_h.x();
-    return dx * dx + q <= 1.0;
-  };
+/// Indices [lo, hi] between the closed-form ends t_lo <= t_hi of an interval
+/// where `inside` (the exact predicate, true on an interval of indices) holds:
+/// the ends are re-tested with `inside` where they fall within `tol` of an
+/// index.
+template <typename Inside>
+inline Span ExactSpan(double t_lo, double t_hi, double tol, Inside inside) {
   // First centre at or after t_lo, last at or before t_hi.
   const int f_lo = FastFloor(t_lo);
   const double r_lo = t_lo - f_lo;
   Span span{f_lo + 1, 0};
-  if (r_lo < e.tol || r_lo > 1.0 - e.tol) {
+  if (r_lo < tol || r_lo > 1.0 - tol) {
     const int j = r_lo < 0.5 ? f_lo : f_lo + 1;
     span.lo = inside(j) ? j : j + 1;
   }
   const int f_hi = FastFloor(t_hi);
   const double r_hi = t_hi - f_hi;
   span.hi = f_hi;
-  if (r_hi < e.tol || r_hi > 1.0 - e.tol) {
+  if (r_hi < tol || r_hi > 1.0 - tol) {
     const int j = r_hi < 0.5 ? f_hi : f_hi + 1;
     span.hi = inside(j) ? j : j - 1;
   }
   return span;
+}
+
+/// Voxels x (unclamped) of one row whose centres satisfy dx^2 + q <= 1, with
+/// dx = (CentreX(x) - cx) / k: the closed-form ends, re-tested with that
+/// predicate where they fall within `tol` of a voxel centre. Precondition: q <= 1.
+inline Span RowSpan(const VoxelGrid& g, const Prepared& e, double q) {
+  const double w = std::sqrt(1.0 - q) * e.h_idx.x();
+  auto inside = [&](int x) {
+    const double dx = (g.CentreX(x) - e.c.x()) * e.inv_h.x();
+    return dx * dx + q <= 1.0;
+  };
+  return ExactSpan(e.c_idx.x() - w, e.c_idx.x() + w, e.tol, inside);
+}
+
+/// Packed row or column differences summed into counts (flushed before a
+/// field could overflow).
+struct CountAccumulator {
+  std::uint64_t packed = 0;
+  int packed_rows = 0;
+  int length = 0;
+  int unknown = 0, occluded = 0, known = 0, free = 0;
+  void Add(std::uint64_t row, int row_length) {
+    packed += row;
+    length += row_length;
+    if (++packed_rows == RowCounts::kMaxSummedRows) Flush();
+  }
+  void Flush() {
+    const int u = RowCounts::Unknown(packed);
+    const int o = RowCounts::Occluded(packed);
+    const int k = RowCounts::Known(packed);
+    unknown += u;
+    occluded += o;
+    known += k;
+    free += length - u - o - k;
+    packed = 0;
+    packed_rows = 0;
+    length = 0;
+  }
+};
+
+/// CountVoxels over z columns: one prefix lookup pair per (x, y) column of the
+/// ellipsoid's footprint. Exact as the row version: the column's z extent is
+/// the closed form of dz^2 <= 1 - (dx^2 + dy^2), its ends re-tested with
+/// Ellipsoid::Contains' arithmetic dx^2 + (dy^2 + dz^2) <= 1 where they fall
+/// within tol of a voxel centre (the predicate is monotone in |dz| in floating
+/// point: every rounding step is monotone).
+EllipsoidCounts CountColumns(const VoxelMap& map, Prepared e,
+                             std::span<const HalfSpace> own_region) {
+  const VoxelGrid& g = map.grid();
+  EllipsoidCounts out;
+  e.tol = 1e-6 * (1.0 + e.h_idx.z());
+  const int nx = g.nx();
+  const int ny = g.ny();
+  const int nz = g.nz();
+  // Below the grid every lattice position counts, at any x and y; without
+  // that, only columns in the grid matter.
+  const bool reaches_floor = FloorInt(e.c_idx.z() - e.h_idx.z()) < 0;
+  int x_lo = FloorInt(e.c_idx.x() - e.h_idx.x());
+  int x_hi = CeilInt(e.c_idx.x() + e.h_idx.x());
+  if (!reaches_floor) {
+    x_lo = std::max(x_lo, 0);
+    x_hi = std::min(x_hi, nx - 1);
+  }
+  CountAccumulator acc;
+  int foreign = 0;
+  for (int x = x_lo; x <= x_hi; ++x) {
+    const double dx = (g.CentreX(x) - e.c.x()) * e.inv_h.x();
+    const double dx2 = dx * dx;
+    if (dx2 > 1.0) continue;
+    const bool x_in = x >= 0 && x < nx;
+    const double wy = std::sqrt(1.0 - dx2) * e.h_idx.y();
+    int y_lo = FloorInt(e.c_idx.y() - wy);
+    int y_hi = CeilInt(e.c_idx.y() + wy);
+    if (!reaches_floor) {
+      y_lo = std::max(y_lo, 0);
+      y_hi = std::min(y_hi, ny - 1);
+    }
+    for (int y = y_lo; y <= y_hi; ++y) {
+      const double dy = (g.CentreY(y) - e.c.y()) * e.inv_h.y();
+      const double dy2 = dy * dy;
+      // dx^2 + dy^2 > 1: dx^2 + (dy^2 + dz^2) > 1 also after rounding.
+      const double q = dx2 + dy2;
+      if (q > 1.0) continue;
+      const double w = std::sqrt(1.0 - q) * e.h_idx.z();
+      const double t_lo = e.c_idx.z() - w;
+      const double t_hi = e.c_idx.z() + w;
+      Span span{FastFloor(t_lo - e.tol) + 1, FastFloor(t_hi - e.tol)};
+      if (((FastFloor(t_lo + e.tol) + 1) ^ span.lo) | (FastFloor(t_hi + e.tol) ^ span.hi)) {
+        span = ExactSpan(t_lo, t_hi, e.tol, [&](int z) {
+          const double dz = (g.CentreZ(z) - e.c.z()) * e.inv_h.z();
+          return dx2 + (dy2 + dz * dz) <= 1.0;
+        });
+      }
+      if (span.lo < 0 && span.hi >= span.lo) {
+        out.below_floor += std::min(span.hi, -1) - span.lo + 1;
+      }
+      if (!x_in || y < 0 || y >= ny) continue;
+      span.lo = std::max(span.lo, 0);
+      span.hi = std::min(span.hi, nz - 1);
+      if (span.lo > span.hi) continue;
+      const RowCounts* p = map.ColumnPrefix(x, y);
+      const std::uint64_t column = p[span.hi + 1].packed - p[span.lo].packed;
+      acc.Add(column, span.hi - span.lo + 1);
+      if (!own_region.empty() && RowCounts::Unknown(column) > 0) {
+        Span own = span;
+        const double px = g.CentreX(x);
+        const double py = g.CentreY(y);
+        for (const HalfSpace& hs : own_region) {
+          ClipColumnToHalfSpace(g, hs, px, py, &own);
+          if (own.lo > own.hi) break;
+        }
+        const int own_unknown = own.lo > own.hi ? 0 : p[own.hi + 1].unknown() - p[own.lo].unknown();
+        foreign += RowCounts::Unknown(column) - own_unknown;
+      }
+    }
+  }
+  acc.Flush();
+  out.unknown = acc.unknown - foreign;
+  out.foreign_unknown = foreign;
+  out.occluded = acc.occluded;
+  out.known = acc.known;
+  out.free = acc.free;
+  return out;
 }
 
 }  // namespace
@@ -114,7 +257,7 @@ HalfSpace HalfSpace::NearerTo(const Eigen::Vector3d& own, const Eigen::Vector3d&
 }
 
 EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
-                            std::span<const HalfSpace> own_region) {
+                            std::span<const HalfSpace> own_region, SumAxis axis) {
   const VoxelGrid& g = map.grid();
   const Eigen::Vector3d& c = ellipsoid.centre_W;
   const Eigen::Vector3d& h = ellipsoid.half_axes_m;
@@ -133,6 +276,10 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   // voxels of a voxel centre; the predicate's rounding moves the boundary by at
   // most ~1.5e-8 * k / voxel there (at the tangent rows), far inside it.
   e.tol = 1e-6 * (1.0 + e.h_idx.x());
+  // Fewer z columns than x rows (a standing person: about a third as many).
+  if (axis == SumAxis::kZ || (axis == SumAxis::kAuto && e.h_idx.z() > e.h_idx.x())) {
+    return CountColumns(map, e, own_region);
+  }
 
   // Layers within the bounding box, and per layer the rows within its
   // ellipse's bounding interval: floor/ceil of the closed-form bounds include
@@ -148,22 +295,8 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   const int z_hi = std::min(CeilInt(e.c_idx.z() + e.h_idx.z()), g.nz() - 1);
   // Row differences are summed packed and unpacked every kMaxSummedRows rows,
   // before a field could overflow.
-  std::uint64_t packed = 0;
-  int packed_rows = 0;
-  int length = 0;
-  int unknown = 0, occluded = 0, known = 0, free = 0, foreign = 0;
-  auto flush = [&] {
-    const int u = RowCounts::Unknown(packed);
-    const int o = RowCounts::Occluded(packed);
-    const int k = RowCounts::Known(packed);
-    unknown += u;
-    occluded += o;
-    known += k;
-    free += length - u - o - k;
-    packed = 0;
-    packed_rows = 0;
-    length = 0;
-  };
+  CountAccumulator acc;
+  int foreign = 0;
   for (int z = z_lo; z <= z_hi; ++z) {
     const double pz = g.CentreZ(z);
     const double dz = (pz - c.z()) * e.inv_h.z();
@@ -208,9 +341,7 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
       span.hi = std::min(span.hi, nx - 1);
       if (span.lo > span.hi) continue;
       const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
-      packed += row;
-      length += span.hi - span.lo + 1;
-      if (++packed_rows == RowCounts::kMaxSummedRows) flush();
+      acc.Add(row, span.hi - span.lo + 1);
       if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
         Span own = span;
         const double py = g.CentreY(y);
@@ -223,12 +354,12 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
       }
     }
   }
-  flush();
-  out.unknown = unknown - foreign;
+  acc.Flush();
+  out.unknown = acc.unknown - foreign;
   out.foreign_unknown = foreign;
-  out.occluded = occluded;
-  out.known = known;
-  out.free = free;
+  out.occluded = acc.occluded;
+  out.known = acc.known;
+  out.free = acc.free;
   return out;
 }
 

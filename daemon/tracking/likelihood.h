@@ -81,15 +81,23 @@ struct EllipsoidCounts {
 /// outside the intersection of these half-spaces count as foreign_unknown
 /// (empty: every UNKNOWN voxel is own).
 ///
-/// Cost: O(rows spanned * (1 + own_region.size())): per (y, z) row the x
-/// extent of the ellipsoid (and of the region) is solved in closed form and the
-/// counts come from two prefix entries, never from a loop over the row's
-/// voxels. A person-sized ellipsoid at 4 cm voxels spans about 420 rows. Exact: the result equals a
-/// loop over all voxels with Ellipsoid::Contains and HalfSpace::Contains on VoxelGrid::Centre
-/// (boundary voxels whose closed-form index is within rounding of an integer are re-tested with
-/// those predicates). Thread-safe for concurrent calls on a map that is not being updated.
+/// Which lines CountVoxels sums along: kAuto takes z columns when the
+/// ellipsoid is taller than it is long in x (fewer columns than rows), else x
+/// rows; kX and kZ force one (tests, benchmarks). The result is the same.
+enum class SumAxis { kAuto, kX, kZ };
+
+/// Cost: O(lines spanned * (1 + own_region.size())): per (y, z) row, or per
+/// (x, y) column, the extent of the ellipsoid (and of the region) along it is
+/// solved in closed form and the counts come from two prefix entries, never
+/// from a loop over the voxels. A standing person's ellipsoid at 4 cm voxels
+/// spans about 420 rows but 140 columns. Exact: the result equals a loop over
+/// all voxels with Ellipsoid::Contains and HalfSpace::Contains on
+/// VoxelGrid::Centre (boundary voxels whose closed-form index is within
+/// rounding of an integer are re-tested with those predicates). Thread-safe
+/// for concurrent calls on a map that is not being updated.
 [[nodiscard]] EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
-                                          std::span<const HalfSpace> own_region = {});
+                                          std::span<const HalfSpace> own_region = {},
+                                          SumAxis axis = SumAxis::kAuto);
 
 /// Appends the indices of the voxels of `grid` whose centres lie inside the
 /// ellipsoid (Ellipsoid::Contains), in index order: synthetic UNKNOWN blobs

@@ -36,6 +36,11 @@ VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states)
   }
   prefix_.resize(static_cast<std::size_t>(grid_.num_rows()) * (grid_.nx() + 1));
   for (int row = 0; row < grid_.num_rows(); ++row) RebuildRow(row);
+  const int columns = grid_.nx() * grid_.ny();
+  column_prefix_.resize(static_cast<std::size_t>(columns) * (grid_.nz() + 1));
+  for (int column = 0; column < columns; ++column) RebuildColumn(column);
+  column_dirty_.assign(columns, 0);
+  dirty_columns_.reserve(columns);
   current_.reserve(grid_.size());
   staged_.reserve(grid_.size());
   row_dirty_.assign(grid_.num_rows(), 0);
@@ -96,6 +101,12 @@ void VoxelMap::MarkRow(std::uint32_t index) {
     row_dirty_[row] = 1;
     dirty_rows_.push_back(row);
   }
+  const int column = static_cast<int>(
+      index % (static_cast<std::uint32_t>(grid_.nx()) * static_cast<std::uint32_t>(grid_.ny())));
+  if (column_dirty_[column] == 0) {
+    column_dirty_[column] = 1;
+    dirty_columns_.push_back(column);
+  }
 }
 
 void VoxelMap::Commit() {
@@ -119,6 +130,12 @@ void VoxelMap::Commit() {
     row_dirty_[row] = 0;
   }
   dirty_rows_.clear();
+  columns_rebuilt_ = static_cast<int>(dirty_columns_.size());
+  for (const int column : dirty_columns_) {
+    RebuildColumn(column);
+    column_dirty_[column] = 0;
+  }
+  dirty_columns_.clear();
 }
 
 void VoxelMap::RebuildRow(int row) {
@@ -128,15 +145,21 @@ void VoxelMap::RebuildRow(int row) {
   RowCounts acc;
   p[0] = acc;
   for (int x = 0; x < nx; ++x) {
-    const auto s = static_cast<VoxelState>(f[x] & kStaticMask);
-    if (s == VoxelState::kKnown) {
-      acc.packed += RowCounts::kKnownOne;
-    } else if ((f[x] & kUnknownBit) != 0) {
-      acc.packed += RowCounts::kUnknownOne;
-    } else if (s == VoxelState::kOccluded) {
-      acc.packed += RowCounts::kOccludedOne;
-    }
+    acc.packed += CountOf(f[x]);
     p[x + 1] = acc;
+  }
+}
+
+void VoxelMap::RebuildColumn(int column) {
+  const int nz = grid_.nz();
+  const std::size_t layer = static_cast<std::size_t>(grid_.nx()) * grid_.ny();
+  const std::uint8_t* f = flags_.data() + column;
+  RowCounts* p = column_prefix_.data() + static_cast<std::size_t>(column) * (nz + 1);
+  RowCounts acc;
+  p[0] = acc;
+  for (int z = 0; z < nz; ++z, f += layer) {
+    acc.packed += CountOf(*f);
+    p[z + 1] = acc;
   }
 }
 

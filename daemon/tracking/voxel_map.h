@@ -1,8 +1,9 @@
 #pragma once
 /// @file
 /// Voxel states for tracking: static KNOWN / OCCLUDED labels computed once,
-/// the UNKNOWN set rebuilt every cycle, and per-row prefix counts that let the
-/// likelihood sum an ellipsoid with one lookup pair per row.
+/// the UNKNOWN set rebuilt every cycle, and prefix counts along x rows and
+/// along z columns that let the likelihood sum an ellipsoid with one lookup
+/// pair per row or per column, whichever it spans fewer of.
 
 #include <cstdint>
 #include <span>
@@ -13,7 +14,7 @@
 
 namespace hg::tracking {
 
-/// Prefix counts along one row: entry i counts the voxels [0, i) of the row in
+/// Prefix counts along one row (or column): entry i counts the voxels [0, i) of it in
 /// each state (free voxels are the rest), packed into one 64-bit word of three
 /// 21-bit fields. Entries are non-decreasing in every field, so the
 /// difference of two entries is the packed count of the voxels between them
@@ -52,12 +53,13 @@ static_assert(static_cast<std::uint64_t>(RowCounts::kMaxSummedRows) * VoxelGrid:
 /// Static labels (KNOWN, OCCLUDED) are given at construction. The UNKNOWN set
 /// is replaced each cycle by SetUnknown() or SetUnknownFromSnapshot(): only
 /// the voxels set in the previous cycle are cleared (no pass over the grid),
-/// and only the rows whose UNKNOWN voxels changed get their prefix counts
-/// rebuilt. Cost per cycle: O(|previous set| + |new set| + changed rows * nx);
-/// at 4 cm voxels one moving person changes a few hundred rows of ~125
-/// voxels, tens of microseconds. Memory: 1 byte per voxel for the states,
-/// 8 bytes per voxel for the prefix counts, 8 bytes per voxel reserved for the
-/// UNKNOWN lists (so no cycle allocates, even with the whole cell occupied).
+/// and only the rows and columns whose UNKNOWN voxels changed get their prefix
+/// counts rebuilt. Cost per cycle: O(|previous set| + |new set| + changed
+/// rows * nx + changed columns * nz); at 4 cm voxels one moving person changes
+/// a few hundred rows of ~125 voxels and columns of ~75, tens of microseconds.
+/// Memory: 1 byte per voxel for the states, 16 bytes per voxel for the prefix
+/// counts, 8 bytes per voxel reserved for the UNKNOWN lists (so no cycle
+/// allocates, even with the whole cell occupied).
 ///
 /// Thread-compatible: const methods may run concurrently; updates need
 /// exclusive access.
@@ -105,8 +107,17 @@ class VoxelMap {
     return prefix_.data() + static_cast<std::size_t>(grid_.Row(y, z)) * (grid_.nx() + 1);
   }
 
+  /// Prefix counts of column (x, y) along z: nz() + 1 entries.
+  [[nodiscard]] const RowCounts* ColumnPrefix(int x, int y) const {
+    return column_prefix_.data() +
+           (static_cast<std::size_t>(y) * grid_.nx() + static_cast<std::size_t>(x)) *
+               (grid_.nz() + 1);
+  }
+
   /// Rows whose prefix counts the last update rebuilt (for tests and profiling).
   [[nodiscard]] int rows_rebuilt_last_update() const { return rows_rebuilt_; }
+  /// Columns whose prefix counts the last update rebuilt.
+  [[nodiscard]] int columns_rebuilt_last_update() const { return columns_rebuilt_; }
 
  private:
   static constexpr std::uint8_t kStaticMask = 0x3;
@@ -121,20 +132,34 @@ class VoxelMap {
       staged_.push_back(index);
     }
   }
+  /// The packed count of one voxel with these flags (precedence KNOWN >
+  /// UNKNOWN > OCCLUDED; FREE counts nothing).
+  static std::uint64_t CountOf(std::uint8_t flags) {
+    const auto s = static_cast<VoxelState>(flags & kStaticMask);
+    if (s == VoxelState::kKnown) return RowCounts::kKnownOne;
+    if ((flags & kUnknownBit) != 0) return RowCounts::kUnknownOne;
+    if (s == VoxelState::kOccluded) return RowCounts::kOccludedOne;
+    return 0;
+  }
   void Commit();
-  void MarkRow(std::uint32_t index);
+  void MarkRow(std::uint32_t index);  // And its column.
   void RebuildRow(int row);
+  void RebuildColumn(int column);  // column = y * nx + x.
 
   VoxelGrid grid_;
-  std::vector<std::uint8_t> flags_;      // Static state | kUnknownBit | kStagedBit.
-  std::vector<RowCounts> prefix_;        // (nx + 1) per row.
-  std::vector<std::uint32_t> current_;   // UNKNOWN voxels now.
-  std::vector<std::uint32_t> staged_;    // UNKNOWN voxels of the cycle being built.
-  std::vector<std::uint8_t> row_dirty_;  // Per row.
-  std::vector<int> dirty_rows_;          // Rows to rebuild.
+  std::vector<std::uint8_t> flags_;         // Static state | kUnknownBit | kStagedBit.
+  std::vector<RowCounts> prefix_;           // (nx + 1) per row.
+  std::vector<std::uint32_t> current_;      // UNKNOWN voxels now.
+  std::vector<std::uint32_t> staged_;       // UNKNOWN voxels of the cycle being built.
+  std::vector<std::uint8_t> row_dirty_;     // Per row.
+  std::vector<int> dirty_rows_;             // Rows to rebuild.
+  std::vector<RowCounts> column_prefix_;    // (nz + 1) per column (x, y).
+  std::vector<std::uint8_t> column_dirty_;  // Per column.
+  std::vector<int> dirty_columns_;          // Columns to rebuild.
   // Snapshot cell -> voxel index ranges per axis (first, last), reused.
   std::vector<Eigen::Vector2i> cell_range_[3];
   int rows_rebuilt_ = 0;
+  int columns_rebuilt_ = 0;
 };
 
 }  // namespace hg::tracking

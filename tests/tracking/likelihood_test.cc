@@ -143,12 +143,12 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
   const VoxelMap map = RandomMap(g, 3);
   std::mt19937_64 rng(17);
   std::uniform_real_distribution<double> cx(-0.6, 1.4), cy(-0.1, 1.6), cz(-0.3, 1.2);
-  std::uniform_real_distribution<double> axis(0.02, 0.6);
+  std::uniform_real_distribution<double> half_axis(0.02, 0.6);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   const LikelihoodWeights w{1.0, 0.1, -5.0, -0.1, -3.0};
   for (int trial = 0; trial < 400; ++trial) {
     const Ellipsoid e{Vector3d(cx(rng), cy(rng), cz(rng)),
-                      Vector3d(axis(rng), axis(rng), axis(rng))};
+                      Vector3d(half_axis(rng), half_axis(rng), half_axis(rng))};
     std::vector<HalfSpace> region;
     const int planes = trial % 4;
     for (int k = 0; k < planes; ++k) {
@@ -159,9 +159,14 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
       region.push_back(HalfSpace::NearerTo(e.centre_W, other));
     }
     SCOPED_TRACE(trial);
-    const EllipsoidCounts fast = CountVoxels(map, e, region);
-    ExpectSameCounts(fast, BruteCounts(map, e, region));
-    EXPECT_NEAR(Score(fast, w), BruteScore(map, e, region, w), 1e-9);
+    const EllipsoidCounts brute = BruteCounts(map, e, region);
+    const double brute_score = BruteScore(map, e, region, w);
+    for (const SumAxis axis : {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ}) {
+      SCOPED_TRACE(static_cast<int>(axis));
+      const EllipsoidCounts fast = CountVoxels(map, e, region, axis);
+      ExpectSameCounts(fast, brute);
+      EXPECT_NEAR(Score(fast, w), brute_score, 1e-9);
+    }
   }
 }
 
@@ -180,8 +185,11 @@ TEST(LikelihoodTest, BoundaryTiesMatchBruteForce) {
           HalfSpace::NearerTo(mid - Vector3d(0.1, 0.0, 0.0), mid + Vector3d(0.1, 0.0, 0.0)),
           HalfSpace::NearerTo(mid + Vector3d(0.0, 0.0, 0.125), mid + Vector3d(0.0, 0.0, 0.375))};
       SCOPED_TRACE(testing::Message() << "cx " << cx << " a " << a);
-      ExpectSameCounts(CountVoxels(map, e), BruteCounts(map, e, {}));
-      ExpectSameCounts(CountVoxels(map, e, region), BruteCounts(map, e, region));
+      for (const SumAxis axis : {SumAxis::kX, SumAxis::kZ}) {
+        SCOPED_TRACE(static_cast<int>(axis));
+        ExpectSameCounts(CountVoxels(map, e, {}, axis), BruteCounts(map, e, {}));
+        ExpectSameCounts(CountVoxels(map, e, region, axis), BruteCounts(map, e, region));
+      }
     }
   }
 }
@@ -194,6 +202,11 @@ TEST(LikelihoodTest, BelowTheFloorCounts) {
   // A ball of radius 0.2 (1.6 voxels) around the centre of voxel (0, 0, 0):
   // the lattice offsets with di^2 + dj^2 + dk^2 <= 2.56.
   const Ellipsoid ball{Vector3d::Constant(0.0625), Vector3d::Constant(0.2)};
+  for (const SumAxis axis : {SumAxis::kX, SumAxis::kZ}) {
+    const EllipsoidCounts m = CountVoxels(map, ball, {}, axis);
+    EXPECT_EQ(m.below_floor, 5);
+    EXPECT_EQ(m.free, 4 + 3);
+  }
   const EllipsoidCounts n = CountVoxels(map, ball);
   EXPECT_EQ(n.below_floor, 5);  // Layer -1: (0, 0) and its four side neighbours.
   EXPECT_EQ(n.free, 4 + 3);     // In the grid (i, j >= 0): layer 0 and layer 1.

@@ -54,9 +54,25 @@ TEST(VoxelGridTest, RejectsBadInput) {
                common::ConfigError);
 }
 
-// Prefix counts of every row, recounted from State().
+// Prefix counts of every row and every column, recounted from State().
 void ExpectPrefixMatchesStates(const VoxelMap& map) {
   const VoxelGrid& g = map.grid();
+  for (int y = 0; y < g.ny(); ++y) {
+    for (int x = 0; x < g.nx(); ++x) {
+      const RowCounts* p = map.ColumnPrefix(x, y);
+      int u = 0, o = 0, k = 0;
+      for (int z = 0; z <= g.nz(); ++z) {
+        ASSERT_EQ(p[z].unknown(), u) << x << " " << y << " " << z;
+        ASSERT_EQ(p[z].occluded(), o);
+        ASSERT_EQ(p[z].known(), k);
+        if (z == g.nz()) break;
+        const VoxelState s = map.State(x, y, z);
+        u += s == VoxelState::kUnknown;
+        o += s == VoxelState::kOccluded;
+        k += s == VoxelState::kKnown;
+      }
+    }
+  }
   for (int z = 0; z < g.nz(); ++z) {
     for (int y = 0; y < g.ny(); ++y) {
       const RowCounts* p = map.RowPrefix(y, z);
@@ -134,12 +150,15 @@ TEST(VoxelMapTest, RebuildsOnlyChangedRows) {
   VoxelMap map(g, std::vector<VoxelState>(g.size(), VoxelState::kFree));
   map.SetUnknown(std::vector<std::uint32_t>{g.Index(1, 2, 3), g.Index(5, 2, 3), g.Index(0, 4, 4)});
   EXPECT_EQ(map.rows_rebuilt_last_update(), 2);
+  EXPECT_EQ(map.columns_rebuilt_last_update(), 3);
   // Same set again: nothing changes.
   map.SetUnknown(std::vector<std::uint32_t>{g.Index(5, 2, 3), g.Index(1, 2, 3), g.Index(0, 4, 4)});
   EXPECT_EQ(map.rows_rebuilt_last_update(), 0);
+  EXPECT_EQ(map.columns_rebuilt_last_update(), 0);
   // One voxel leaves, one enters another row.
   map.SetUnknown(std::vector<std::uint32_t>{g.Index(1, 2, 3), g.Index(5, 2, 3), g.Index(0, 9, 9)});
   EXPECT_EQ(map.rows_rebuilt_last_update(), 2);
+  EXPECT_EQ(map.columns_rebuilt_last_update(), 2);
   EXPECT_EQ(map.State(0, 4, 4), VoxelState::kFree);
   EXPECT_EQ(map.State(0, 9, 9), VoxelState::kUnknown);
   ExpectPrefixMatchesStates(map);
