@@ -75,7 +75,8 @@ void ClipColumnToHalfSpace(const VoxelGrid& g, const HalfSpace& h, double px, do
     if (!inside(span->lo)) span->hi = span->lo - 1;
     return;
   }
-  const double t = ((h.offset - a - b) / nz - g.origin().z()) / g.voxel_m() - 0.5;
+  // One division: the estimate needs no exactness (ClipMonotone corrects it).
+  const double t = (h.offset - a - b - nz * g.origin().z()) / (nz * g.voxel_m()) - 0.5;
   ClipMonotone(t, nz > 0.0, inside, span);
 }
 
