@@ -440,6 +440,12 @@ const Field<TrackingConfig> kTrackingFields[] = {
      .meaning = "A connected occupied component outside every track starts a track when at least "
                 "this large.",
      .limits = {0, kInf, true}},
+    {.key = "birth_min_height_m",
+     .member = &TrackingConfig::birth_min_height_m,
+     .meaning = "People come in standing: a new track is a person's when its evidence has a "
+                "head's cross-section at this height above the floor; otherwise it is an object "
+                "track (a parcel), followed but not published. 0: every track is a person's.",
+     .limits = {0, kInf}},
     {.key = "death_timeout_s",
      .member = &TrackingConfig::death_timeout_s,
      .meaning = "A visible track dies after this long without occupied voxels in its ellipsoid.",
@@ -844,6 +850,7 @@ constexpr std::pair<const char*, const char*> kTrackerOptionKeys[] = {
     {"likelihood.below_floor", "below_floor_weight"},
     {"filter.collision_radius_m", "collision_radius_m"},
     {"birth_min_volume_m3", "birth_min_volume_m3"},
+    {"birth_min_height_m", "birth_min_height_m"},
     {"death_timeout_s", "death_timeout_s"},
     {"occluded_death_timeout_s", "occluded_death_timeout_s"},
     {"reacquire_radius_m", "reacquire_radius_m"},

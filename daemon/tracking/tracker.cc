@@ -123,6 +123,9 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
   Require(o.birth_gate_margin_m >= 0.0 && Finite(o.birth_gate_margin_m), "birth_gate_margin_m",
           "must be >= 0", &p);
   Require(Finite(o.birth_max_floating_m), "birth_max_floating_m", "must be finite", &p);
+  Require(o.birth_min_height_m >= 0.0 && Finite(o.birth_min_height_m), "birth_min_height_m",
+          "must be >= 0", &p);
+  Require(Finite(o.promote_min_top_m), "promote_min_top_m", "must be finite", &p);
   Require(Finite(o.explain_margin_m), "explain_margin_m", "must be finite", &p);
   Require(o.birth_min_views >= 0 && o.birth_min_views <= kMaxViewCameras, "birth_min_views",
           "must be in [0, 16]", &p);
@@ -205,6 +208,7 @@ void Tracker::Init() {
   marks_.assign(map_.grid().size(), 0);
   queue_.reserve(map_.grid().size());
   path_.reserve(map_.grid().nz());
+  layer_evidence_.assign(map_.grid().nz(), 0);
   for (int dz = -1; dz <= 1; ++dz) {
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
@@ -261,7 +265,12 @@ void Tracker::Step(std::int64_t stamp_ns) {
                       ((e.centre_W - e.half_axes_m).array() > covered.max.array()).any();
     if (s.time_since_support_s > timeout || left) {
       s.alive = false;
-      ++stats_.deaths;
+      if (s.person) ++stats_.deaths;
+    } else if (!s.person &&
+               e.centre_W.z() + e.half_axes_m.z() - covered.min.z() >= options_.promote_min_top_m) {
+      s.person = true;  // Stood up.
+      ++stats_.births;
+      ++stats_.promotions;
     }
   }
 
@@ -341,6 +350,8 @@ void Tracker::Births() {
       // cameras see past every track; some of them must stand on something.
       int evidence = 0;
       bool grounded = false;
+      int z_min = g.nz();
+      int z_max = -1;  // Layers of layer_evidence_ to read and clear.
       Vector3d sum = Vector3d::Zero();
       Vector3d sum_sq = Vector3d::Zero();
       for (const std::uint32_t i : queue_) {
@@ -351,9 +362,24 @@ void Tracker::Births() {
         ++evidence;
         sum += p;
         sum_sq += p.cwiseProduct(p);
+        z_min = std::min(z_min, c.z());
+        z_max = std::max(z_max, c.z());
+        ++layer_evidence_[c.z()];
         grounded = grounded || Grounded(i);
       }
-      if (grounded) StartOrReacquire(evidence, sum, sum_sq);
+      // Tall: a layer at birth_min_height_m or higher holds a head's
+      // cross-section of evidence; the thin tip that silhouette cones leave
+      // above a low object does not.
+      bool tall = options_.birth_min_height_m <= 0.0;
+      const double voxel_area = g.voxel_m() * g.voxel_m();
+      for (int z = std::max(z_min, 0); z <= z_max; ++z) {
+        if ((z + 0.5) * g.voxel_m() >= options_.birth_min_height_m &&
+            layer_evidence_[z] * voxel_area >= kHeadAreaM2) {
+          tall = true;
+        }
+        layer_evidence_[z] = 0;
+      }
+      if (grounded) StartOrReacquire(evidence, sum, sum_sq, tall);
     }
   }
   for (const std::uint32_t i : unknown) marks_[i] = 0;
@@ -449,7 +475,8 @@ bool Tracker::SeenPastTracks(std::uint32_t index, const Vector3d& p_W) const {
   return true;
 }
 
-void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vector3d& sum_sq) {
+void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vector3d& sum_sq,
+                               bool tall) {
   if (unexplained * map_.grid().voxel_volume_m3() < options_.birth_min_volume_m3) return;
   // Uniform solid ellipsoid: variance along an axis = half-axis^2 / 5.
   const Vector3d mean = sum / unexplained;
@@ -488,6 +515,7 @@ void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vecto
   }
   Slot& s = *free_slot;
   s.alive = true;
+  s.person = tall;
   s.id = next_id_++;
   s.age_s = 0.0;
   s.time_since_support_s = 0.0;
@@ -495,13 +523,13 @@ void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vecto
   s.filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed, s.id));
   Assess(&s, 0.0);
   s.time_since_support_s = 0.0;
-  ++stats_.births;
+  ++(tall ? stats_.births : stats_.object_births);
 }
 
 void Tracker::Publish() {
   tracks_.clear();
   for (const Slot& s : slots_) {
-    if (!s.alive) continue;
+    if (!s.alive || !s.person) continue;
     const FilterEstimate& e = s.filter->estimate();
     Track t;
     t.id = s.id;

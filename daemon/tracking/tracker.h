@@ -52,6 +52,20 @@ struct TrackerOptions {
   /// the cameras' height that few cameras bound, or the space a person hides
   /// from the only cameras that see under a table. Negative: no check.
   double birth_max_floating_m = 0.1;
+  /// People come in standing: a new track is a person's when its evidence
+  /// reaches this height above the grid's bottom (m): some layer of voxels
+  /// there holds at least a head's cross-section (kHeadAreaM2) of it. A
+  /// parcel or a cart put down in the cell occupies space like a person (and
+  /// its silhouette cones leave a thin tip above it): it gets an object track,
+  /// filtered like a person's so that it holds its share of the evidence (a
+  /// person passing it is not drawn onto it) but not published. A person who
+  /// crouches or crawls once tracked stays a person. 0: every track is a
+  /// person's.
+  double birth_min_height_m = 1.0;
+  /// An object track becomes a person's when its estimate ellipsoid's top
+  /// reaches this height above the grid's bottom (m): someone who was
+  /// crouching when tracking started stands up.
+  double promote_min_top_m = 1.4;
   /// Explaining away (with cameras: the constructor from a StaticScene). A
   /// voxel outside every gate counts towards a birth only when some camera
   /// sees it and every camera that sees it looks at it past every supported
@@ -144,6 +158,8 @@ struct TrackerStats {
   std::uint64_t deaths = 0;
   std::uint64_t births_dropped = 0;  ///< Wanted a track while max_tracks were alive.
   std::uint64_t reacquisitions = 0;  ///< Components given back to a track without support.
+  std::uint64_t object_births = 0;   ///< Object tracks started (not people, not published).
+  std::uint64_t promotions = 0;      ///< Object tracks that became people (counted in births).
 };
 
 /// The multi-person tracker. One cycle (Step) per occupancy snapshot:
@@ -164,7 +180,10 @@ struct TrackerStats {
 ///    sees: birth_max_floating_m), start a
 ///    track on those voxels (centre = mean, half-axes from their spread),
 ///    unless a track without support is
-///    near enough to re-acquire them (its filter restarts there, same id).
+///    near enough to re-acquire them (its filter restarts there, same id);
+///    a new track is an object's (not published) unless its evidence reaches
+///    birth_min_height_m, and becomes a person's when it stands up
+///    (promote_min_top_m).
 ///    The search is skipped when all unexplained voxels together stay below
 ///    birth_min_volume_m3 (everybody tracked: one gate test per UNKNOWN
 ///    voxel). One component gives at most one track per cycle; two people who
@@ -209,6 +228,7 @@ class Tracker {
   struct Slot {
     std::unique_ptr<ParticleFilter> filter;
     bool alive = false;
+    bool person = true;  // False: an object track (not published).
     std::uint32_t id = 0;
     double age_s = 0.0;
     double time_since_support_s = 0.0;
@@ -226,7 +246,10 @@ class Tracker {
   void Births();
   /// A component with `unexplained` voxels outside every gate (sum and sum of
   /// squares of their centres): re-acquired by a lost track, or a new track.
-  void StartOrReacquire(int unexplained, const Eigen::Vector3d& sum, const Eigen::Vector3d& sum_sq);
+  /// `tall`: the evidence reaches birth_min_height_m (a new track is a
+  /// person's, else an object's; a re-acquired track keeps its kind).
+  void StartOrReacquire(int unexplained, const Eigen::Vector3d& sum, const Eigen::Vector3d& sum_sq,
+                        bool tall);
   /// The column below unexplained UNKNOWN voxel `index` reaches the floor or
   /// an obstacle (TrackerOptions::birth_max_floating_m). Memoised in marks_.
   [[nodiscard]] bool Grounded(std::uint32_t index);
@@ -262,6 +285,11 @@ class Tracker {
     Eigen::Vector3d camera_S;  // Camera centre in the unit-sphere frame.
     double camera_norm2_minus_1 = 0.0;
   };
+  /// Evidence voxels per layer of the component being examined (zero between).
+  std::vector<int> layer_evidence_;
+  /// Cross-section of evidence that counts as a head in a layer (m^2): about a
+  /// third of an adult head's, less than the tip of a low object's hull.
+  static constexpr double kHeadAreaM2 = 0.01;
   std::vector<std::uint16_t> views_;  // Eroded by birth_view_margin_voxels.
   void ErodeViews();
   std::vector<Eigen::Vector3d> camera_centres_W_;

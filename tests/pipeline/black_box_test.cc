@@ -218,6 +218,15 @@ TEST_F(BlackBoxTest, DumpDuringPushesWritesNoTornFrame) {
       }
     }
   });
+  // A failed assertion returns early: the capture thread still stops and joins.
+  struct JoinOnExit {
+    std::atomic<bool>* stop;
+    std::thread* thread;
+    ~JoinOnExit() {
+      stop->store(true);
+      if (thread->joinable()) thread->join();
+    }
+  } join_on_exit{&stop, &capture};
   while (box.pushed(0) < 3 * box.slots(0)) std::this_thread::yield();
   std::uint64_t torn = 0, frames = 0, paced_frames = 0;
   for (int d = 0; d < 6; ++d) {

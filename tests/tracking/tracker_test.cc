@@ -116,6 +116,56 @@ TEST(TrackerTest, BirthOnEntryDeathOnExit) {
   EXPECT_EQ(tracker.stats().births, 2u);
 }
 
+// A parcel (0.6 m tall) appears and stays: it occupies a person's volume but
+// gets an object track, never published. A person who comes in standing and
+// then crouches to the parcel's height keeps the track. Someone crouching when
+// tracking starts is an object until they stand up.
+TEST(TrackerTest, OnlyStandingPeopleStartTracks) {
+  Tracker tracker = OpenCellTracker();
+  const Ellipsoid parcel{Vector3d(3.0, 3.0, 0.3), Vector3d(0.35, 0.35, 0.3)};
+  ASSERT_GE(parcel.Volume(), TrackerOptions{}.birth_min_volume_m3);
+  int frame = 0;
+  for (int k = 0; k < 60; ++k, ++frame) {
+    SetBlobs(&tracker, {parcel});
+    tracker.Step(StampNs(frame));
+    ASSERT_TRUE(tracker.tracks().empty()) << "frame " << frame;
+  }
+  const Vector3d c(1.2, 1.2, 0.9);
+  for (int k = 0; k < 30; ++k, ++frame) {
+    SetBlobs(&tracker, {parcel, Person(c)});
+    tracker.Step(StampNs(frame));
+  }
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  const std::uint32_t id = tracker.tracks()[0].id;
+  // Crouching: as low as the parcel, for longer than the death timeout.
+  const Ellipsoid crouched{Vector3d(1.2, 1.2, 0.3), Vector3d(0.3, 0.3, 0.3)};
+  for (int k = 0; k < 60; ++k, ++frame) {
+    SetBlobs(&tracker, {parcel, crouched});
+    tracker.Step(StampNs(frame));
+    ASSERT_EQ(tracker.tracks().size(), 1u) << "frame " << frame;
+    EXPECT_EQ(tracker.tracks()[0].id, id);
+  }
+  EXPECT_LT((tracker.tracks()[0].centre_W - crouched.centre_W).norm(), 0.15);
+  EXPECT_EQ(tracker.stats().births, 1u);
+  EXPECT_EQ(tracker.stats().object_births, 1u);
+
+  // Crouching from the start, then standing up where they are.
+  Tracker later = OpenCellTracker();
+  for (int k = 0; k < 30; ++k, ++frame) {
+    SetBlobs(&later, {crouched});
+    later.Step(StampNs(frame));
+    ASSERT_TRUE(later.tracks().empty()) << "frame " << frame;
+  }
+  for (int k = 0; k < 30; ++k, ++frame) {
+    SetBlobs(&later, {Person(c)});
+    later.Step(StampNs(frame));
+  }
+  ASSERT_EQ(later.tracks().size(), 1u);
+  EXPECT_LT((later.tracks()[0].centre_W - c).norm(), 0.15);
+  EXPECT_EQ(later.stats().promotions, 1u);
+  EXPECT_EQ(later.stats().births, 1u);
+}
+
 // Two people walk past each other shoulder to shoulder (their blobs touch and
 // form one component while they pass): neither id swaps nor merges.
 TEST(TrackerTest, TwoPeoplePassingKeepTheirIds) {
@@ -184,7 +234,10 @@ TEST(TrackerTest, CrawlUnderATableKeepsTheTrack) {
       shapes.emplace_back(leg);
     }
   }
-  Tracker tracker(TrackerOptions{}, VoxelMap(g, states), CollisionWorld(shapes));
+  // The person is on all fours from the first frame: no height needed to be born.
+  TrackerOptions options;
+  options.birth_min_height_m = 0.0;
+  Tracker tracker(options, VoxelMap(g, states), CollisionWorld(shapes));
 
   const Vector3d half(0.45, 0.25, 0.3);  // On all fours, along x.
   const double speed = 0.4;
@@ -255,7 +308,10 @@ TEST(TrackerTest, OnAndUnderATableKeepTwoTracks) {
       shapes.emplace_back(leg);
     }
   }
-  Tracker tracker(TrackerOptions{}, VoxelMap(g, states), CollisionWorld(shapes));
+  // One person is under the table from the first frame: no height needed to be born.
+  TrackerOptions options;
+  options.birth_min_height_m = 0.0;
+  Tracker tracker(options, VoxelMap(g, states), CollisionWorld(shapes));
 
   const Vector3d standing_half(0.25, 0.2, 0.85), crawling_half(0.45, 0.25, 0.3);
   std::uint32_t id_on = 0, id_under = 0;

@@ -443,7 +443,8 @@ int RunTrackEval(const TrackEvalFlags& f) {
         "\"publish_depth\": %d, \"voxel_m\": %.3f, \"particles\": %d, \"threshold_m\": %.3f,\n"
         " \"mota\": %s, \"motp_m\": %s, \"id_switches\": %lld, \"misses\": %lld, "
         "\"false_positives\": %lld, \"ignored\": %lld, \"objects\": %lld, \"matches\": %lld,\n"
-        " \"births\": %llu, \"deaths\": %llu, \"reacquisitions\": %llu, \"max_tracks\": %d,\n"
+        " \"births\": %llu, \"deaths\": %llu, \"reacquisitions\": %llu, \"object_tracks\": %llu, "
+        "\"max_tracks\": %d,\n"
         " \"tracking_ms\": {\"mean\": %.4f, \"median\": %.4f, \"p99\": %.4f, \"max\": %.4f},\n"
         " \"tracking_cpu_ms\": {\"mean\": %.4f, \"p99\": %.4f},\n"
         " \"tracking_ms_per_person\": {\"mean\": %.4f, \"p99\": %.4f},\n"
@@ -458,7 +459,8 @@ int RunTrackEval(const TrackEvalFlags& f) {
         static_cast<long long>(tot.false_positives), static_cast<long long>(tot.ignored),
         static_cast<long long>(tot.objects), static_cast<long long>(tot.matches),
         static_cast<unsigned long long>(ts.births), static_cast<unsigned long long>(ts.deaths),
-        static_cast<unsigned long long>(ts.reacquisitions), max_tracks, Mean(track_ms), wall.median,
+        static_cast<unsigned long long>(ts.reacquisitions),
+        static_cast<unsigned long long>(ts.object_births), max_tracks, Mean(track_ms), wall.median,
         wall.p99, wall.max, Mean(track_cpu_ms), cpu.p99, Mean(per_person_ms), person.p99,
         Mean(per_person_cpu_ms), person_cpu.p99, Mean(unknown_voxels), build_ms, oct.median,
         oct.p99);
@@ -490,10 +492,12 @@ int RunTrackEval(const TrackEvalFlags& f) {
       std::printf("  tracks on foreground objects or people outside the cell (not scored): %lld\n",
                   static_cast<long long>(tot.ignored));
     }
-    std::printf("  tracks: %llu born, %llu died, %llu re-acquired, at most %d at once\n",
-                static_cast<unsigned long long>(ts.births),
-                static_cast<unsigned long long>(ts.deaths),
-                static_cast<unsigned long long>(ts.reacquisitions), max_tracks);
+    std::printf(
+        "  tracks: %llu born, %llu died, %llu re-acquired, at most %d at once; %llu object "
+        "tracks (not people, not published)\n",
+        static_cast<unsigned long long>(ts.births), static_cast<unsigned long long>(ts.deaths),
+        static_cast<unsigned long long>(ts.reacquisitions), max_tracks,
+        static_cast<unsigned long long>(ts.object_births));
     std::printf(
         "  tracking time per frame (one thread): wall mean %.3f ms, p99 %.3f ms, max %.3f ms; "
         "CPU mean %.3f ms, p99 %.3f ms\n",
