@@ -134,6 +134,20 @@ inline Span RowSpan(const VoxelGrid& g, const Prepared& e, double q) {
   return ExactSpan(e.c_idx.x() - w, e.c_idx.x() + w, e.tol, inside);
 }
 
+/// UNKNOWN voxels of a line (row or column: prefix counts p, voxels `span`,
+/// packed counts `line`) outside the own region, whose half-spaces `clip`
+/// narrows the span to.
+template <typename Clip>
+int ForeignUnknown(const RowCounts* p, Span span, std::uint64_t line,
+                   std::span<const HalfSpace> region, Clip clip) {
+  for (const HalfSpace& hs : region) {
+    clip(hs, &span);
+    if (span.lo > span.hi) break;
+  }
+  const int own = span.lo > span.hi ? 0 : p[span.hi + 1].unknown() - p[span.lo].unknown();
+  return RowCounts::Unknown(line) - own;
+}
+
 /// Packed row or column differences summed into counts (flushed before a
 /// field could overflow).
 struct CountAccumulator {
@@ -224,15 +238,11 @@ EllipsoidCounts CountColumns(const VoxelMap& map, Prepared e,
       const std::uint64_t column = p[span.hi + 1].packed - p[span.lo].packed;
       acc.Add(column, span.hi - span.lo + 1);
       if (!own_region.empty() && RowCounts::Unknown(column) > 0) {
-        Span own = span;
         const double px = g.CentreX(x);
         const double py = g.CentreY(y);
-        for (const HalfSpace& hs : own_region) {
-          ClipColumnToHalfSpace(g, hs, px, py, &own);
-          if (own.lo > own.hi) break;
-        }
-        const int own_unknown = own.lo > own.hi ? 0 : p[own.hi + 1].unknown() - p[own.lo].unknown();
-        foreign += RowCounts::Unknown(column) - own_unknown;
+        foreign += ForeignUnknown(p, span, column, own_region, [&](const HalfSpace& hs, Span* s) {
+          ClipColumnToHalfSpace(g, hs, px, py, s);
+        });
       }
     }
   }
@@ -344,14 +354,10 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
       const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
       acc.Add(row, span.hi - span.lo + 1);
       if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
-        Span own = span;
         const double py = g.CentreY(y);
-        for (const HalfSpace& hs : own_region) {
-          ClipToHalfSpace(g, hs, py, pz, &own);
-          if (own.lo > own.hi) break;
-        }
-        const int own_unknown = own.lo > own.hi ? 0 : p[own.hi + 1].unknown() - p[own.lo].unknown();
-        foreign += RowCounts::Unknown(row) - own_unknown;
+        foreign += ForeignUnknown(p, span, row, own_region, [&](const HalfSpace& hs, Span* s) {
+          ClipToHalfSpace(g, hs, py, pz, s);
+        });
       }
     }
   }

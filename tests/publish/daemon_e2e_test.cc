@@ -2,15 +2,13 @@
 // subscribes as a robot controller would. Run inside a private network
 // namespace holding only loopback (tests/publish/in_netns.sh).
 //   daemon_e2e_test HULLGUARDD SOURCE_DIR
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -24,10 +22,9 @@
 #include "publish/dds.h"
 #include "publish/dds_publisher.h"
 #include "sim/scene.h"
+#include "support/daemon_process.h"
 #include "support/run_tool.h"
 #include "support/sim_bodies.h"
-
-extern char** environ;
 
 namespace hg {
 namespace {
@@ -40,12 +37,7 @@ using namespace std::chrono_literals;
 std::string g_daemon;
 std::string g_source_dir;
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using testing::ReadFile;
 
 std::string Replace(std::string text, const std::string& from, const std::string& to) {
   for (std::size_t at = text.find(from); at != std::string::npos;
@@ -55,55 +47,20 @@ std::string Replace(std::string text, const std::string& from, const std::string
   return text;
 }
 
-/// hullguardd running in the background, its stderr in a file.
-class Daemon {
+/// hullguardd on `config` for `duration_s`, its stderr in dir/hullguardd.log.
+class Daemon : public testing::DaemonProcess {
  public:
   Daemon(const std::string& config, double duration_s, const fs::path& dir)
-      : log_((dir / "hullguardd.log").string()) {
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 2, log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-    const std::string duration = std::to_string(duration_s);
-    std::vector<std::string> args = {g_daemon, "--config", config, "--duration", duration};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    EXPECT_EQ(posix_spawn(&pid_, g_daemon.c_str(), &actions, nullptr, argv.data(), environ), 0);
-    posix_spawn_file_actions_destroy(&actions);
+      : DaemonProcess(g_daemon, {"--config", config, "--duration", std::to_string(duration_s)},
+                      (dir / "hullguardd.log").string()) {
+    EXPECT_TRUE(started()) << g_daemon;
   }
-  ~Daemon() {
-    if (pid_ > 0) {
-      kill(pid_, SIGTERM);
-      Wait();
-    }
-  }
-  Daemon(const Daemon&) = delete;
-  Daemon& operator=(const Daemon&) = delete;
-
-  int Wait() {
-    int status = 0;
-    if (pid_ > 0 && waitpid(pid_, &status, 0) == pid_) pid_ = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  [[nodiscard]] std::string Log() const { return ReadFile(log_); }
-
   /// The CLOCK_REALTIME instant of scene time 0, from the daemon's log.
-  std::int64_t SceneEpochNs() const {
-    const std::regex line("time 0 is ([0-9]+) ns");
-    for (const auto give_up = Clock::now() + 20s; Clock::now() < give_up;
-         std::this_thread::sleep_for(50ms)) {
-      std::smatch m;
-      const std::string log = Log();
-      if (std::regex_search(log, m, line)) return std::stoll(m[1]);
-    }
-    ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
-    return 0;
+  std::int64_t SceneEpoch() const {
+    const std::optional<std::int64_t> epoch = SceneEpochNs();
+    if (!epoch) ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
+    return epoch.value_or(0);
   }
-
- private:
-  std::string log_;
-  pid_t pid_ = -1;
 };
 
 struct OccupancySample {
@@ -230,7 +187,7 @@ TEST_F(DaemonE2E, ReceivedOccupancyCoversEveryPersonPoint) {
   const sim::Scene scene = sim::LoadScene(g_source_dir + "/config/scenes/demo_cell.yaml");
   Controller controller;
   Daemon daemon(config, 9.0, dir_);
-  const std::int64_t epoch = daemon.SceneEpochNs();
+  const std::int64_t epoch = daemon.SceneEpoch();
   controller.Collect(8000ms, 60);
   ASSERT_GE(controller.occupancy_samples.size(), 20U) << daemon.Log();
   int free = 0;
@@ -268,7 +225,7 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
 
   Controller controller;
   Daemon daemon(config, 7.0, dir_);
-  const std::int64_t epoch = daemon.SceneEpochNs();
+  const std::int64_t epoch = daemon.SceneEpoch();
   controller.Collect(6500ms);
   ASSERT_FALSE(controller.occupancy_samples.empty()) << daemon.Log();
 

@@ -7,10 +7,7 @@
 // tests/publish/in_netns.sh: a private network namespace with only loopback,
 // so no discovery broadcast or stream leaves the machine.
 //   gige_e2e_test (HG_HULLGUARDD: the daemon binary)
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -37,10 +34,9 @@
 #include "sim/body.h"
 #include "sim/colour_renderer.h"
 #include "sim/scene.h"
+#include "support/daemon_process.h"
 #include "support/fake_gige_camera.h"
 #include "support/sim_bodies.h"
-
-extern char** environ;
 
 namespace hg {
 namespace {
@@ -116,12 +112,7 @@ std::string ConfigYaml() {
   return s.str();
 }
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using testing::ReadFile;
 
 // Pre-rendered frames of every camera, the empty cell and the cell with its
 // people, each a short loop of sensor-noise variants (so no camera looks
@@ -168,60 +159,15 @@ class CellFrames {
   std::atomic<bool> people_{false};
 };
 
-/// hullguardd running in the background, its stderr in a file.
-class Daemon {
+/// hullguardd on `config`, its stderr in dir/hullguardd.log. A bounded run: a
+/// test that fails badly leaves no daemon behind.
+class Daemon : public testing::DaemonProcess {
  public:
-  Daemon(const std::string& config, const fs::path& dir) : log_((dir / "hullguardd.log").string()) {
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 2, log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-    // A bounded run: a test that fails badly leaves no daemon behind.
-    std::vector<std::string> args = {HG_HULLGUARDD, "--config", config, "--duration", "240"};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    EXPECT_EQ(posix_spawn(&pid_, HG_HULLGUARDD, &actions, nullptr, argv.data(), environ), 0);
-    posix_spawn_file_actions_destroy(&actions);
+  Daemon(const std::string& config, const fs::path& dir)
+      : DaemonProcess(HG_HULLGUARDD, {"--config", config, "--duration", "240"},
+                      (dir / "hullguardd.log").string()) {
+    EXPECT_TRUE(started()) << HG_HULLGUARDD;
   }
-  ~Daemon() {
-    if (pid_ > 0) {
-      kill(pid_, SIGKILL);
-      waitpid(pid_, nullptr, 0);
-    }
-  }
-  Daemon(const Daemon&) = delete;
-  Daemon& operator=(const Daemon&) = delete;
-
-  [[nodiscard]] pid_t pid() const { return pid_; }
-  /// The process has not ended (it is still the one started).
-  [[nodiscard]] bool Running() {
-    int status = 0;
-    return pid_ > 0 && waitpid(pid_, &status, WNOHANG) == 0;
-  }
-  /// SIGTERM (as systemctl stop) and waits up to `limit` for the exit.
-  /// Returns the exit code (-1 if it did not exit cleanly) and sets *took.
-  int Terminate(Clock::duration limit, Clock::duration* took) {
-    const Clock::time_point start = Clock::now();
-    kill(pid_, SIGTERM);
-    int status = 0;
-    while (Clock::now() - start < limit) {
-      const pid_t r = waitpid(pid_, &status, WNOHANG);
-      if (r == pid_) {
-        *took = Clock::now() - start;
-        pid_ = -1;
-        return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      }
-      std::this_thread::sleep_for(10ms);  // Polls the exit; there is no event to wait on.
-    }
-    *took = Clock::now() - start;
-    return -1;
-  }
-  [[nodiscard]] std::string Log() const { return ReadFile(log_); }
-
- private:
-  std::string log_;
-  pid_t pid_ = -1;
 };
 
 struct CameraSample {

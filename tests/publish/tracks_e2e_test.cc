@@ -3,10 +3,7 @@
 // ground truth by a DDS reader as a controller would. Run inside a private
 // network namespace holding only loopback (tests/publish/in_netns.sh).
 //   tracks_e2e_test HULLGUARDD SOURCE_DIR HULLGUARD
-#include <fcntl.h>
 #include <signal.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -16,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -31,9 +29,8 @@
 #include "publish/dds_publisher.h"
 #include "sim/body.h"
 #include "sim/scene.h"
+#include "support/daemon_process.h"
 #include "support/run_tool.h"
-
-extern char** environ;
 
 namespace hg {
 namespace {
@@ -48,62 +45,22 @@ std::string g_daemon;
 std::string g_source_dir;
 std::string g_hullguard;
 
-std::string ReadFile(const std::string& path) {
-  std::ifstream in(path);
-  std::ostringstream text;
-  text << in.rdbuf();
-  return text.str();
-}
+using testing::ReadFile;
 
-/// hullguardd running in the background, its stderr in a file.
-class Daemon {
+/// hullguardd on `config` for `duration_s`, its stderr in dir/hullguardd.log.
+class Daemon : public testing::DaemonProcess {
  public:
   Daemon(const std::string& config, double duration_s, const fs::path& dir)
-      : log_((dir / "hullguardd.log").string()) {
-    posix_spawn_file_actions_t actions;
-    posix_spawn_file_actions_init(&actions);
-    posix_spawn_file_actions_addopen(&actions, 2, log_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
-    const std::string duration = std::to_string(duration_s);
-    std::vector<std::string> args = {g_daemon, "--config", config, "--duration", duration};
-    std::vector<char*> argv;
-    for (std::string& a : args) argv.push_back(a.data());
-    argv.push_back(nullptr);
-    EXPECT_EQ(posix_spawn(&pid_, g_daemon.c_str(), &actions, nullptr, argv.data(), environ), 0);
-    posix_spawn_file_actions_destroy(&actions);
+      : DaemonProcess(g_daemon, {"--config", config, "--duration", std::to_string(duration_s)},
+                      (dir / "hullguardd.log").string()) {
+    EXPECT_TRUE(started()) << g_daemon;
   }
-  ~Daemon() {
-    if (pid_ > 0) {
-      kill(pid_, SIGTERM);
-      Wait();
-    }
-  }
-  Daemon(const Daemon&) = delete;
-  Daemon& operator=(const Daemon&) = delete;
-
-  int Wait() {
-    int status = 0;
-    if (pid_ > 0 && waitpid(pid_, &status, 0) == pid_) pid_ = -1;
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  }
-  [[nodiscard]] std::string Log() const { return ReadFile(log_); }
-
   /// The CLOCK_REALTIME instant of scene time 0, from the daemon's log.
-  std::int64_t SceneEpochNs() const {
-    const std::regex line("time 0 is ([0-9]+) ns");
-    for (const auto give_up = Clock::now() + 20s; Clock::now() < give_up;
-         std::this_thread::sleep_for(50ms)) {
-      std::smatch m;
-      const std::string log = Log();
-      if (std::regex_search(log, m, line)) return std::stoll(m[1]);
-    }
-    ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
-    return 0;
+  std::int64_t SceneEpoch() const {
+    const std::optional<std::int64_t> epoch = SceneEpochNs();
+    if (!epoch) ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
+    return epoch.value_or(0);
   }
-
- private:
-  std::string log_;
-  pid_t pid_ = -1;
 };
 
 struct ReceivedTracks {
@@ -359,7 +316,7 @@ TEST_F(TracksE2E, ATrackWithAStableIdFollowsTheWalkingPerson) {
 
   Listener listener(0);
   Daemon daemon(config_path, 10.0, dir_);
-  const std::int64_t epoch = daemon.SceneEpochNs();
+  const std::int64_t epoch = daemon.SceneEpoch();
   listener.Collect(9000ms);
   EXPECT_EQ(daemon.Wait(), 0) << daemon.Log();
   const std::string log = daemon.Log();
