@@ -160,6 +160,16 @@ struct CountAccumulator {
     length += row_length;
     if (++packed_rows == RowCounts::kMaxSummedRows) Flush();
   }
+  /// Flushes and writes the state counts into *out; `foreign` of the UNKNOWN
+  /// voxels lie outside the own region.
+  void FillCounts(int foreign, EllipsoidCounts* out) {
+    Flush();
+    out->unknown = unknown - foreign;
+    out->foreign_unknown = foreign;
+    out->occluded = occluded;
+    out->known = known;
+    out->free = free;
+  }
   void Flush() {
     const int u = RowCounts::Unknown(packed);
     const int o = RowCounts::Occluded(packed);
@@ -246,12 +256,7 @@ EllipsoidCounts CountColumns(const VoxelMap& map, Prepared e,
       }
     }
   }
-  acc.Flush();
-  out.unknown = acc.unknown - foreign;
-  out.foreign_unknown = foreign;
-  out.occluded = acc.occluded;
-  out.known = acc.known;
-  out.free = acc.free;
+  acc.FillCounts(foreign, &out);
   return out;
 }
 
@@ -361,12 +366,7 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
       }
     }
   }
-  acc.Flush();
-  out.unknown = acc.unknown - foreign;
-  out.foreign_unknown = foreign;
-  out.occluded = acc.occluded;
-  out.known = acc.known;
-  out.free = acc.free;
+  acc.FillCounts(foreign, &out);
   return out;
 }
 

@@ -15,22 +15,7 @@
 #include <gtest/gtest.h>
 
 #include "scene/demo_cell.h"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-#pragma GCC diagnostic pop
+#include "support/allocation_counter.h"
 
 namespace hg::app {
 namespace {
@@ -133,11 +118,13 @@ TEST(TrackingStageTest, CyclesReachTheConsumerAndAllocateNothingAfterWarmUp) {
       });
   for (int f = 0; f < 10; ++f) stage.RunOnce(snaps[f]);
   ASSERT_EQ(last_tracks, 1);
-  g_allocations = 0;
-  g_counting = true;
-  for (int f = 10; f < frames; ++f) stage.RunOnce(snaps[f]);
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  long allocations = 0;
+  {
+    const hg::testing::AllocationCounter counter;
+    for (int f = 10; f < frames; ++f) stage.RunOnce(snaps[f]);
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
   ASSERT_EQ(sequences.size(), static_cast<std::size_t>(frames));
   for (int f = 0; f < frames; ++f) EXPECT_EQ(sequences[f], static_cast<std::uint64_t>(f) + 1);
   EXPECT_TRUE(degraded_seen);

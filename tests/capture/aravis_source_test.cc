@@ -24,21 +24,7 @@
 #include <gtest/gtest.h>
 
 #include "capture/aravis_source.h"
-
-// Counts operator new on threads that ask for it (the capture thread of a
-// test): Aravis' and the fake camera's own threads allocate as they please.
-namespace {
-thread_local bool t_counting = false;
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (t_counting) g_allocations.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "support/allocation_counter.h"
 
 namespace hg::capture {
 namespace {
@@ -186,11 +172,16 @@ TEST(AravisSourceTest, DeliversKnownMonoImagesWithIncreasingStamps) {
   long allocations = 0;
   for (int n = 0; n < 6; ++n) {
     if (n > 0) {
-      t_counting = n >= 2;  // Steady state: the frame's buffers exist.
-      const long before = g_allocations.load();
-      const bool got = NextWithin(&source, &frame, milliseconds(5000));
-      allocations += g_allocations.load() - before;
-      t_counting = false;
+      // Counted on this thread only (Aravis' and the fake camera's own threads
+      // allocate as they please), from the steady state on: the frame's
+      // buffers exist.
+      const bool got = [&] {
+        const hg::testing::AllocationCounter counter(
+            hg::testing::AllocationCounter::Threads::kThis);
+        const bool ok = NextWithin(&source, &frame, milliseconds(5000));
+        if (n >= 2) allocations += counter.count();
+        return ok;
+      }();
       ASSERT_TRUE(got) << "frame " << n;
     }
     ASSERT_EQ(frame.kind, FrameKind::kMono);
@@ -240,11 +231,13 @@ TEST(AravisSourceTest, ConvertsRgbAndEveryBayerPattern) {
     ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
     long allocations = 0;
     for (int n = 0; n < 3; ++n) {
-      t_counting = n > 0;
-      const long before = g_allocations.load();
-      const bool got = NextWithin(&source, &frame, milliseconds(5000));
-      allocations += g_allocations.load() - before;
-      t_counting = false;
+      const bool got = [&] {
+        const hg::testing::AllocationCounter counter(
+            hg::testing::AllocationCounter::Threads::kThis);
+        const bool ok = NextWithin(&source, &frame, milliseconds(5000));
+        if (n > 0) allocations += counter.count();
+        return ok;
+      }();
       ASSERT_TRUE(got);
       ASSERT_EQ(frame.kind, FrameKind::kRgb);
       ASSERT_EQ(frame.rgb.width, kSensor);

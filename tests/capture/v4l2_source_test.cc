@@ -31,24 +31,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/config_error.h"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// operator new above allocates with malloc, so free is the matching release;
-// GCC cannot see that through the replacement and warns where it inlines.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-#pragma GCC diagnostic pop
+#include "support/allocation_counter.h"
 
 namespace hg::capture {
 namespace {
@@ -928,16 +911,16 @@ TEST(V4l2SourceTest, NoAllocationPerFrameAfterWarmUp) {
     V4l2Source source(Options(format), FactoryFor(camera));
     Frame frame;
     for (int k = 0; k < 2; ++k) ASSERT_TRUE(source.Next(&frame, milliseconds(500)));
-    g_allocations = 0;
+    long allocations = 0;
     int frames = 0;
     for (int k = 2; k < 12; ++k) {
-      g_counting = true;
+      const hg::testing::AllocationCounter counter;
       const bool ok = source.Next(&frame, milliseconds(500));
-      g_counting = false;
+      allocations += counter.count();
       frames += ok;
     }
     EXPECT_EQ(frames, 10);
-    EXPECT_EQ(g_allocations.load(), 0) << "format " << static_cast<int>(format);
+    EXPECT_EQ(allocations, 0) << "format " << static_cast<int>(format);
   }
 }
 

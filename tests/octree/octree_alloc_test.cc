@@ -8,20 +8,8 @@
 
 #include "octree/octree.h"
 #include "silhouette/quadtree.h"
+#include "support/allocation_counter.h"
 #include "support/random_scene.h"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace hg::octree {
 namespace {
@@ -47,15 +35,15 @@ TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
   long allocations_last_pass = -1;
   std::int64_t visited = 0;
   for (int pass = 0; pass < 3; ++pass) {
-    g_allocations = 0;
+    long allocations = 0;
     for (const auto& masks : frames) {
-      g_counting = pass == 2;
+      const hg::testing::AllocationCounter counter;
       for (std::size_t c = 0; c < trees.size(); ++c) trees[c].Build(masks[c].View(), 127);
       const UpdateStats stats = tree.Update(ptrs);
-      g_counting = false;
+      allocations += counter.count();
       visited += stats.nodes_visited;
     }
-    allocations_last_pass = g_allocations.load();
+    if (pass == 2) allocations_last_pass = allocations;
   }
   EXPECT_GT(visited, 10000);  // The frames did real work.
   EXPECT_EQ(allocations_last_pass, 0);

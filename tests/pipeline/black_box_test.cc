@@ -24,21 +24,8 @@
 #include "capture/replay_source.h"
 #include "common/config_error.h"
 #include "geometry/camera_yaml.h"
+#include "support/allocation_counter.h"
 
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-// Not inlined: GCC would otherwise see free() of what operator new returned
-// and warn (-Wmismatched-new-delete), although both are these replacements.
-[[gnu::noinline]] void operator delete(void* p) noexcept { std::free(p); }
-[[gnu::noinline]] void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 void* operator new[](std::size_t size) { return operator new(size); }
 [[gnu::noinline]] void operator delete[](void* p) noexcept { std::free(p); }
 [[gnu::noinline]] void operator delete[](void* p, std::size_t) noexcept { std::free(p); }
@@ -273,15 +260,17 @@ TEST_F(BlackBoxTest, PushAllocatesNothing) {
   MakeFrame(FrameKind::kRgb, 64, 48, 1, 0, &rgb);
   MakeFrame(FrameKind::kMono, 33, 17, 1, 1, &mono);
   MakeFrame(FrameKind::kRgb, 65, 48, 1, 1, &too_big);
-  g_allocations = 0;
-  g_counting = true;
-  for (int i = 0; i < 100; ++i) {
-    box.Push(0, rgb);
-    box.Push(1, mono);
-    box.Push(1, too_big);
+  long allocations = 0;
+  {
+    const hg::testing::AllocationCounter counter;
+    for (int i = 0; i < 100; ++i) {
+      box.Push(0, rgb);
+      box.Push(1, mono);
+      box.Push(1, too_big);
+    }
+    allocations = counter.count();
   }
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  EXPECT_EQ(allocations, 0);
   EXPECT_EQ(box.pushed(0), 100U);
   EXPECT_EQ(box.oversized(1), 100U);
 }

@@ -21,8 +21,8 @@
 #include "hullguard.h"
 #include "publish/dds.h"
 #include "publish/dds_publisher.h"
+#include "publish/hullguardd_run.h"
 #include "sim/scene.h"
-#include "support/daemon_process.h"
 #include "support/run_tool.h"
 #include "support/sim_bodies.h"
 
@@ -46,22 +46,6 @@ std::string Replace(std::string text, const std::string& from, const std::string
   }
   return text;
 }
-
-/// hullguardd on `config` for `duration_s`, its stderr in dir/hullguardd.log.
-class Daemon : public testing::DaemonProcess {
- public:
-  Daemon(const std::string& config, double duration_s, const fs::path& dir)
-      : DaemonProcess(g_daemon, {"--config", config, "--duration", std::to_string(duration_s)},
-                      (dir / "hullguardd.log").string()) {
-    EXPECT_TRUE(started()) << g_daemon;
-  }
-  /// The CLOCK_REALTIME instant of scene time 0, from the daemon's log.
-  std::int64_t SceneEpoch() const {
-    const std::optional<std::int64_t> epoch = SceneEpochNs();
-    if (!epoch) ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
-    return epoch.value_or(0);
-  }
-};
 
 struct OccupancySample {
   std::uint64_t sequence = 0;
@@ -186,7 +170,7 @@ TEST_F(DaemonE2E, ReceivedOccupancyCoversEveryPersonPoint) {
   const std::string config = g_source_dir + "/config/demo.yaml";
   const sim::Scene scene = sim::LoadScene(g_source_dir + "/config/scenes/demo_cell.yaml");
   Controller controller;
-  Daemon daemon(config, 9.0, dir_);
+  testing::HullguarddRun daemon(g_daemon, config, 9.0, dir_);
   const std::int64_t epoch = daemon.SceneEpoch();
   controller.Collect(8000ms, 60);
   ASSERT_GE(controller.occupancy_samples.size(), 20U) << daemon.Log();
@@ -224,7 +208,7 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
   const sim::Scene scene = sim::LoadScene(g_source_dir + "/tests/data/demo_cell_standing.yaml");
 
   Controller controller;
-  Daemon daemon(config, 7.0, dir_);
+  testing::HullguarddRun daemon(g_daemon, config, 7.0, dir_);
   const std::int64_t epoch = daemon.SceneEpoch();
   controller.Collect(6500ms);
   ASSERT_FALSE(controller.occupancy_samples.empty()) << daemon.Log();

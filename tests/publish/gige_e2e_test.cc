@@ -31,10 +31,10 @@
 #include "hullguard.h"
 #include "publish/dds.h"
 #include "publish/dds_publisher.h"
+#include "publish/hullguardd_run.h"
 #include "sim/body.h"
 #include "sim/colour_renderer.h"
 #include "sim/scene.h"
-#include "support/daemon_process.h"
 #include "support/fake_gige_camera.h"
 #include "support/sim_bodies.h"
 
@@ -157,17 +157,6 @@ class CellFrames {
   };
   std::vector<Loop> frames_;
   std::atomic<bool> people_{false};
-};
-
-/// hullguardd on `config`, its stderr in dir/hullguardd.log. A bounded run: a
-/// test that fails badly leaves no daemon behind.
-class Daemon : public testing::DaemonProcess {
- public:
-  Daemon(const std::string& config, const fs::path& dir)
-      : DaemonProcess(HG_HULLGUARDD, {"--config", config, "--duration", "240"},
-                      (dir / "hullguardd.log").string()) {
-    EXPECT_TRUE(started()) << HG_HULLGUARDD;
-  }
 };
 
 struct CameraSample {
@@ -355,7 +344,8 @@ TEST_F(GigeE2E, CamerasServeTheDaemonThroughLossAndReconnection) {
   const std::string config = (dir_ / "gige.yaml").string();
   std::ofstream(config) << ConfigYaml();
   Controller controller;
-  Daemon daemon(config, dir_);
+  testing::HullguarddRun daemon(HG_HULLGUARDD, config, 240.0,
+                                dir_);  // Bounded: no daemon left behind.
   const pid_t pid = daemon.pid();
   auto log = [&daemon] { return "daemon log:\n" + daemon.Log(); };
 

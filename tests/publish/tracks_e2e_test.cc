@@ -27,9 +27,9 @@
 #include "hullguard.h"
 #include "publish/dds.h"
 #include "publish/dds_publisher.h"
+#include "publish/hullguardd_run.h"
 #include "sim/body.h"
 #include "sim/scene.h"
-#include "support/daemon_process.h"
 #include "support/run_tool.h"
 
 namespace hg {
@@ -46,22 +46,6 @@ std::string g_source_dir;
 std::string g_hullguard;
 
 using testing::ReadFile;
-
-/// hullguardd on `config` for `duration_s`, its stderr in dir/hullguardd.log.
-class Daemon : public testing::DaemonProcess {
- public:
-  Daemon(const std::string& config, double duration_s, const fs::path& dir)
-      : DaemonProcess(g_daemon, {"--config", config, "--duration", std::to_string(duration_s)},
-                      (dir / "hullguardd.log").string()) {
-    EXPECT_TRUE(started()) << g_daemon;
-  }
-  /// The CLOCK_REALTIME instant of scene time 0, from the daemon's log.
-  std::int64_t SceneEpoch() const {
-    const std::optional<std::int64_t> epoch = SceneEpochNs();
-    if (!epoch) ADD_FAILURE() << "no scene epoch in the daemon's log:\n" << Log();
-    return epoch.value_or(0);
-  }
-};
 
 struct ReceivedTracks {
   std::uint64_t sequence = 0;
@@ -315,7 +299,7 @@ TEST_F(TracksE2E, ATrackWithAStableIdFollowsTheWalkingPerson) {
   ASSERT_EQ(scene.people.size(), 1u);
 
   Listener listener(0);
-  Daemon daemon(config_path, 10.0, dir_);
+  testing::HullguarddRun daemon(g_daemon, config_path, 10.0, dir_);
   const std::int64_t epoch = daemon.SceneEpoch();
   listener.Collect(9000ms);
   EXPECT_EQ(daemon.Wait(), 0) << daemon.Log();

@@ -18,23 +18,7 @@
 #include "sim/colour_renderer.h"
 #include "sim/mask_renderer.h"
 #include "sim/scene.h"
-
-// Counts allocations while g_counting is set (the per-frame allocation test).
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-#pragma GCC diagnostic pop
+#include "support/allocation_counter.h"
 
 namespace hg::silhouette {
 namespace {
@@ -833,18 +817,20 @@ TEST(BackgroundModelTest, NoAllocationPerFrame) {
     common::ImageU8 mono_mask;
     colour.Apply(frames[0], &mask);  // Sizes the masks.
     mono.Apply(grey[0], &mono_mask);
-    g_allocations = 0;
-    g_counting = true;
-    for (int pass = 0; pass < 3; ++pass) {
-      for (std::size_t i = 0; i < frames.size(); ++i) {
-        colour.Apply(frames[i], &mask);
-        mono.Apply(grey[i], &mono_mask);
+    long allocations = 0;
+    {
+      const hg::testing::AllocationCounter counter;
+      for (int pass = 0; pass < 3; ++pass) {
+        for (std::size_t i = 0; i < frames.size(); ++i) {
+          colour.Apply(frames[i], &mask);
+          mono.Apply(grey[i], &mono_mask);
+        }
+        colour.Reset();
+        mono.Reset();
       }
-      colour.Reset();
-      mono.Reset();
+      allocations = counter.count();
     }
-    g_counting = false;
-    EXPECT_EQ(g_allocations.load(), 0) << "shadows_are_foreground " << shadows;
+    EXPECT_EQ(allocations, 0) << "shadows_are_foreground " << shadows;
   }
 }
 }  // namespace

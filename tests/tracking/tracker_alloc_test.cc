@@ -8,20 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support/allocation_counter.h"
 #include "tracking/tracker.h"
-
-namespace {
-std::atomic<bool> g_counting{false};
-std::atomic<long> g_allocations{0};
-}  // namespace
-
-void* operator new(std::size_t size) {
-  if (g_counting.load(std::memory_order_relaxed)) g_allocations.fetch_add(1);
-  if (void* p = std::malloc(size == 0 ? 1 : size)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 
 namespace hg::tracking {
 namespace {
@@ -74,11 +62,13 @@ TEST(TrackerAllocationTest, NoAllocationPerCycleAfterWarmUp) {
   }
   for (int f = 0; f < 10; ++f) tracker.Update(snaps[f]);  // Warm-up: births.
   ASSERT_EQ(tracker.tracks().size(), 2u);
-  g_allocations = 0;
-  g_counting = true;
-  for (int f = 10; f < frames; ++f) tracker.Update(snaps[f]);
-  g_counting = false;
-  EXPECT_EQ(g_allocations.load(), 0);
+  long allocations = 0;
+  {
+    const hg::testing::AllocationCounter counter;
+    for (int f = 10; f < frames; ++f) tracker.Update(snaps[f]);
+    allocations = counter.count();
+  }
+  EXPECT_EQ(allocations, 0);
   // The counted cycles did the work: a death after the second person left,
   // and a birth when someone came back.
   EXPECT_GE(tracker.stats().deaths, 1u);
