@@ -31,27 +31,45 @@ CameraView::CameraView(const geometry::CameraModel& pinhole,
   }
 }
 
+namespace {
+
+// Outside the obstacles' rectangle (empty without obstacles) no pixel sees one.
+bool NearObstacle(const CameraView& view, const geometry::PixelRect& clip) {
+  const geometry::PixelRect& o = view.obstacle_rect();
+  return clip.u0 <= o.u1 && clip.u1 >= o.u0 && clip.v0 <= o.v1 && clip.v1 >= o.v0;
+}
+
+}  // namespace
+
+ObstacleRelation RelateToObstacles(const CameraView& view, const geometry::Footprint& fp) {
+  if (fp.side != geometry::Footprint::Side::kInFront) return ObstacleRelation::kPartial;
+  const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
+  if (clip.Empty() || !NearObstacle(view, clip)) return ObstacleRelation::kClear;
+  if (view.near_min().AllGreater(clip, fp.z_far)) return ObstacleRelation::kClear;
+  if (view.centre_max().AllLess(clip, fp.z_near)) return ObstacleRelation::kBehind;
+  return ObstacleRelation::kPartial;
+}
+
 Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
-                 const geometry::Footprint& fp, bool* geometric) {
+                 const geometry::Footprint& fp, ObstacleRelation relation, bool* geometric) {
   using Side = geometry::Footprint::Side;
   *geometric = true;
   if (mask == nullptr || fp.side == Side::kBehind) return Verdict::kHidden;
   if (fp.side == Side::kStraddling) return Verdict::kMixed;
   const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
-  if (clip.Empty()) return Verdict::kHidden;
+  if (clip.Empty() || relation == ObstacleRelation::kBehind) return Verdict::kHidden;
   const bool inside = geometry::InsideImage(fp.rect, view.width(), view.height());
   const silhouette::Cover cover = mask->Query(clip);
-  // Outside the obstacles' rectangle (empty without obstacles) no pixel sees one.
-  const geometry::PixelRect& o = view.obstacle_rect();
-  const bool near_obstacle =
-      clip.u0 <= o.u1 && clip.u1 >= o.u0 && clip.v0 <= o.v1 && clip.v1 >= o.v0;
-  if (near_obstacle) {
+  // A box in front of every obstacle in its footprint is classified as if
+  // there were none: free needs the same background, and it cannot be hidden.
+  if (relation == ObstacleRelation::kUnknown && NearObstacle(view, clip)) {
     if (inside && cover == silhouette::Cover::kBackground &&
         view.near_min().AllGreater(clip, fp.z_far)) {
       return Verdict::kFree;
     }
     if (view.centre_max().AllLess(clip, fp.z_near)) return Verdict::kHidden;
-  } else if (inside && cover == silhouette::Cover::kBackground) {
+  } else if (relation != ObstacleRelation::kPartial && inside &&
+             cover == silhouette::Cover::kBackground) {
     return Verdict::kFree;
   }
   if (cover == silhouette::Cover::kForeground) return Verdict::kFull;

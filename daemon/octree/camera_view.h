@@ -49,13 +49,32 @@ enum class Verdict : std::uint8_t {
   kMixed = 3,   ///< Anything else: a smaller box may get another verdict.
 };
 
+/// Where a box lies relative to the static obstacles in one camera's view:
+/// the part of a verdict that never changes, so the octree can keep it.
+enum class ObstacleRelation : std::uint8_t {
+  kUnknown = 0,  ///< Not computed: Classify() looks the obstacle depths up itself.
+  kClear = 1,    ///< In front of every obstacle surface in its footprint (or none there).
+  kBehind = 2,   ///< Behind obstacles at every footprint pixel: the camera cannot see it.
+  kPartial = 3,  ///< Neither (or not entirely in front of the camera).
+};
+
+/// The relation of the box with footprint `fp`. kClear is monotone: it holds
+/// for every box inside a box for which it holds, since a sub-box has a
+/// sub-footprint and a nearer farthest depth (likewise kBehind).
+[[nodiscard]] ObstacleRelation RelateToObstacles(const CameraView& view,
+                                                 const geometry::Footprint& fp);
+
 /// Classifies the box with footprint `fp` in one camera. `mask == nullptr`
 /// means the camera delivers nothing (lost or stale): it sees nothing.
+/// `relation` is RelateToObstacles(view, fp) when known (from a cache or an
+/// enclosing box); kUnknown makes Classify look up what it needs. The verdict
+/// is the same either way.
 /// For kMixed, `*geometric` tells whether the mixture comes only from geometry
 /// (the box straddles the camera plane, the image border or an obstacle's
 /// depth while every footprint pixel in the image is background), not from
 /// the silhouette.
 [[nodiscard]] Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
-                               const geometry::Footprint& fp, bool* geometric);
+                               const geometry::Footprint& fp, ObstacleRelation relation,
+                               bool* geometric);
 
 }  // namespace hg::octree

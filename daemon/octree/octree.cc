@@ -57,10 +57,16 @@ struct alignas(64) Octree::WorkerScratch {
   int clock_countdown = 0;
   // Footprints per tree level, so that a node visit initialises nothing.
   geometry::Footprint footprints[Octree::kMaxDepth + 1][Octree::kMaxCameras];
-  // Projected 3x3x3 grids per camera for FinestChildren().
-  double grid_u[Octree::kMaxCameras][27];
-  double grid_v[Octree::kMaxCameras][27];
-  double grid_z[Octree::kMaxCameras][27];
+  // Per tree level: the 3x3x3 corner grid of the eight children of the node
+  // being split there, projected per camera when a child first needs it.
+  struct ChildGrid {
+    double xs[3], ys[3], zs[3];
+    std::uint32_t projected = 0;  // Cameras whose u, v, z are filled in.
+    double u[Octree::kMaxCameras][27];
+    double v[Octree::kMaxCameras][27];
+    double z[Octree::kMaxCameras][27];
+  };
+  ChildGrid grids[Octree::kMaxDepth + 1];
 };
 
 /// One update pass: the per-worker traversal of roots.
@@ -81,7 +87,7 @@ class Octree::Updater {
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
-    Visit(pool, 0, cell, false, 0, 0, counters);
+    Visit(pool, 0, cell, false, 0, 0, 0, nullptr, 0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -103,6 +109,27 @@ class Octree::Updater {
 
   geometry::Footprint FootprintOf(int c, const common::Box3& box) const {
     return tree_.cameras_[c].projector().Project(box.min, box.max);
+  }
+
+  // Starts the corner grid of the children of the node with `box`.
+  void BeginChildGrid(WorkerScratch::ChildGrid& g, const Cell& cell,
+                      const common::Box3& box) const {
+    const common::Box3 upper = CellBox(tree_.config_.bounds, cell.Child(7));
+    g.xs[0] = box.min.x(), g.xs[1] = upper.min.x(), g.xs[2] = box.max.x();
+    g.ys[0] = box.min.y(), g.ys[1] = upper.min.y(), g.ys[2] = box.max.y();
+    g.zs[0] = box.min.z(), g.zs[1] = upper.min.z(), g.zs[2] = box.max.z();
+    g.projected = 0;
+  }
+
+  // Footprint of child i in camera c from the shared corner grid: bit-identical
+  // to FootprintOf() of the child's own box (BoxProjector::ProjectGrid).
+  geometry::Footprint ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i) const {
+    if (((g.projected >> c) & 1u) == 0) {
+      tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.u[c], g.v[c], g.z[c]);
+      g.projected |= 1u << c;
+    }
+    return geometry::BoxProjector::FromCorners<3>(g.u[c], g.v[c], g.z[c], i & 1, (i >> 1) & 1,
+                                                  (i >> 2) & 1);
   }
 
   bool ChangedIn(int c, const geometry::Footprint& fp) const {
@@ -150,14 +177,11 @@ class Octree::Updater {
   // and returned packed (2 bits each, LeafState). They share a 3x3x3 grid of
   // projected points per camera; the cameras in `inherit` are full or hidden
   // for the parent and therefore for every child.
-  std::uint32_t FinestChildren(const Cell& cell, std::uint32_t inherit, std::uint32_t verdicts,
-                               Counters& k) {
+  std::uint32_t FinestChildren(const Cell& cell, const common::Box3& box, std::uint32_t inherit,
+                               std::uint32_t verdicts, std::uint32_t clear, Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
-    const common::Box3 box = CellBox(tree_.config_.bounds, cell);
-    const common::Box3 upper = CellBox(tree_.config_.bounds, cell.Child(7));
-    const double xs[3] = {box.min.x(), upper.min.x(), box.max.x()};
-    const double ys[3] = {box.min.y(), upper.min.y(), box.max.y()};
-    const double zs[3] = {box.min.z(), upper.min.z(), box.max.z()};
+    WorkerScratch::ChildGrid& g = k.grids[cell.level];
+    BeginChildGrid(g, cell, box);
     bool inherited_full = false;
     int mixed[kMaxCameras];
     int num_mixed = 0;
@@ -166,21 +190,19 @@ class Octree::Updater {
         inherited_full = inherited_full || GetVerdict(verdicts, c) == Verdict::kFull;
       } else {
         mixed[num_mixed++] = c;
-        tree_.cameras_[c].projector().ProjectGrid<3>(xs, ys, zs, k.grid_u[c], k.grid_v[c],
-                                                     k.grid_z[c]);
       }
     }
     std::uint32_t packed = 0;
     for (int i = 0; i < 8; ++i) {
-      const int dx = i & 1, dy = (i >> 1) & 1, dz = (i >> 2) & 1;
       bool any_free = false;
       bool sees_foreground = inherited_full;  // Some camera full or mixed in its silhouette.
       for (int m = 0; m < num_mixed && !any_free; ++m) {
         const int c = mixed[m];
-        const geometry::Footprint fp = geometry::BoxProjector::FromCorners<3>(
-            k.grid_u[c], k.grid_v[c], k.grid_z[c], dx, dy, dz);
+        const geometry::Footprint fp = ChildFootprint(g, c, i);
         bool geometric = false;
-        const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, &geometric);
+        const ObstacleRelation relation =
+            ((clear >> c) & 1u) != 0 ? ObstacleRelation::kClear : ObstacleRelation::kUnknown;
+        const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, relation, &geometric);
         ++k.verdicts;
         any_free = v == Verdict::kFree;
         sees_foreground =
@@ -203,11 +225,17 @@ class Octree::Updater {
   // `inherit` holds the cameras whose verdict on the parent is full or hidden,
   // with those verdicts in `parent_verdicts`. Both are monotone (a sub-box has
   // a sub-footprint and a depth range inside the parent's), so the child takes
-  // them over without a footprint or a quadtree query.
+  // them over without a footprint or a quadtree query; so is `clear`, the
+  // cameras for which the parent lies in front of every obstacle it overlaps.
+  // `grid` is the parent's child grid, null for a root.
   void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force,
-             std::uint32_t inherit, std::uint32_t parent_verdicts, Counters& k) {
+             std::uint32_t inherit, std::uint32_t parent_verdicts, std::uint32_t clear,
+             WorkerScratch::ChildGrid* grid, int child_index, Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
     const common::Box3 box = CellBox(tree_.config_.bounds, cell);
+    auto footprint = [&](int c) {
+      return grid != nullptr ? ChildFootprint(*grid, c, child_index) : FootprintOf(c, box);
+    };
     ++k.visited;
     Node node = pool.nodes[index];  // Copy: the pool may grow below.
     const bool recompute_all = force || (node.flags & kPending) != 0;
@@ -231,7 +259,7 @@ class Octree::Updater {
         if (((node.valid >> c) & 1u) == 0 || GetVerdict(node.verdicts, c) != Verdict::kFree) {
           continue;
         }
-        if (!ChangedIn(c, FootprintOf(c, box))) {
+        if (!ChangedIn(c, footprint(c))) {
           // Other cameras were not checked for changes: their caches may be stale.
           pool.nodes[index].valid = static_cast<std::uint16_t>(1u << c);
           return;
@@ -243,7 +271,7 @@ class Octree::Updater {
     std::uint32_t recompute = 0;
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) continue;
-      fps[c] = FootprintOf(c, box);
+      fps[c] = footprint(c);
       if (recompute_all || ((node.valid >> c) & 1u) == 0 || ChangedIn(c, fps[c])) {
         recompute |= 1u << c;
       }
@@ -257,6 +285,20 @@ class Octree::Updater {
       return;
     }
 
+    // The node's static relation to the obstacles per camera: passed down
+    // (`clear`), kept in the node, or computed once in its lifetime.
+    std::uint32_t obstacle = node.obstacle;
+    auto relation = [&](int c) {
+      if (((clear >> c) & 1u) != 0) return ObstacleRelation::kClear;
+      auto r = static_cast<ObstacleRelation>((obstacle >> (2 * c)) & 3u);
+      if (r == ObstacleRelation::kUnknown) {
+        r = tree_.cameras_[c].has_obstacles() ? RelateToObstacles(tree_.cameras_[c], fps[c])
+                                              : ObstacleRelation::kClear;
+        obstacle |= static_cast<std::uint32_t>(r) << (2 * c);
+      }
+      return r;
+    };
+
     // Evaluate the cameras to recompute; one free verdict settles the node.
     bool any_free = false;
     for (int c = 0; c < num_cameras && !any_free; ++c) {
@@ -266,7 +308,7 @@ class Octree::Updater {
     for (int c = 0; c < num_cameras && !any_free; ++c) {
       if (((recompute >> c) & 1u) == 0) continue;
       bool geometric = false;
-      const Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], &geometric);
+      const Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], relation(c), &geometric);
       ++k.verdicts;
       node.verdicts = SetVerdict(node.verdicts, c, v);
       node.valid |= static_cast<std::uint16_t>(1u << c);
@@ -295,6 +337,7 @@ class Octree::Updater {
       n.verdicts = node.verdicts;
       n.valid = node.valid;
       n.geometric = node.geometric;
+      n.obstacle = obstacle;
     }
     if (any_free) return MakeLeaf(pool, index, kFreeLeaf);
     if (num_cameras == 0 || all_hidden) return MakeLeaf(pool, index, kOccludedLeaf);
@@ -311,9 +354,19 @@ class Octree::Updater {
       const Verdict v = GetVerdict(node.verdicts, c);
       if (v == Verdict::kFull || v == Verdict::kHidden) child_inherit |= 1u << c;
     }
+    // Cameras whose children will be classified and that see this node in
+    // front of every obstacle: no descendant looks up obstacle depths for them.
+    std::uint32_t child_clear = clear;
+    for (int c = 0; c < num_cameras; ++c) {
+      if ((((clear | child_inherit) >> c) & 1u) == 0 && relation(c) == ObstacleRelation::kClear) {
+        child_clear |= 1u << c;
+      }
+    }
+    pool.nodes[index].obstacle = obstacle;
     if (cell.level + 1 == tree_.config_.depth) {
       // Children at the finest level: evaluated together, stored in the node.
-      const std::uint32_t packed = FinestChildren(cell, child_inherit, node.verdicts, k);
+      const std::uint32_t packed =
+          FinestChildren(cell, box, child_inherit, node.verdicts, child_clear, k);
       MakeLeaf(pool, index, kPackedInner);
       Node& n = pool.nodes[index];
       n.children = packed;
@@ -333,10 +386,13 @@ class Octree::Updater {
       n.state = kInner;
       n.flags = 0;
     }
+    WorkerScratch::ChildGrid& g = k.grids[cell.level];
+    BeginChildGrid(g, cell, box);
     std::uint8_t below = 0;
     for (std::uint32_t i = 0; i < 8; ++i) {
       const Cell child = cell.Child(i);
-      Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, k);
+      Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear, &g,
+            static_cast<int>(i), k);
       below |= pool.nodes[first + i].flags;
     }
     if (below != 0) pool.nodes[index].flags = kHasPending;

@@ -141,6 +141,7 @@ class Octree {
     std::uint16_t geometric = 0;           // Cameras whose kMixed verdict is geometric.
     std::uint8_t state = 0;                // NodeState.
     std::uint8_t flags = 0;                // kPending | kHasPending.
+    std::uint32_t obstacle = 0;            // 2 bits per camera: ObstacleRelation (static).
   };
   // kPackedInner: a node one level above the finest whose eight children are
   // leaves stored in `children`, 2 bits each (LeafState), not as nodes.
