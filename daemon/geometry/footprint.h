@@ -18,6 +18,12 @@ inline constexpr double kMinFrontDepth = 1e-6;
 /// errors of the projection can only grow the rectangle.
 inline constexpr double kFootprintSlackPx = 1e-6;
 
+/// The pixel holding image coordinate x (pixel u covers [u - 0.5, u + 0.5)),
+/// clamped far outside any image.
+inline int PixelOf(double x) {
+  return static_cast<int>(std::floor(std::clamp(x + 0.5, -1e9, 1e9)));
+}
+
 /// Where a box lies relative to one camera. Value type.
 struct Footprint {
   enum class Side { kInFront, kBehind, kStraddling };
@@ -104,15 +110,11 @@ struct BoxProjector {
       v_min = std::min(v_min, v[idx[c]]);
       v_max = std::max(v_max, v[idx[c]]);
     }
-    // Pixel u covers [u - 0.5, u + 0.5): a coordinate x lies in pixel floor(x + 0.5).
-    auto to_pixel = [](double x) {
-      return static_cast<int>(std::floor(std::clamp(x + 0.5, -1e9, 1e9)));
-    };
     f.side = Footprint::Side::kInFront;
-    f.rect.u0 = to_pixel(u_min - kFootprintSlackPx);
-    f.rect.u1 = to_pixel(u_max + kFootprintSlackPx);
-    f.rect.v0 = to_pixel(v_min - kFootprintSlackPx);
-    f.rect.v1 = to_pixel(v_max + kFootprintSlackPx);
+    f.rect.u0 = PixelOf(u_min - kFootprintSlackPx);
+    f.rect.u1 = PixelOf(u_max + kFootprintSlackPx);
+    f.rect.v0 = PixelOf(v_min - kFootprintSlackPx);
+    f.rect.v1 = PixelOf(v_max + kFootprintSlackPx);
     return f;
   }
 };

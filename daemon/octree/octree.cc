@@ -87,7 +87,7 @@ class Octree::Updater {
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
-    Visit(pool, 0, cell, false, 0, 0, 0, nullptr, 0, counters);
+    Visit(pool, 0, cell, false, 0, 0, 0, 0, nullptr, 0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -121,25 +121,58 @@ class Octree::Updater {
     g.projected = 0;
   }
 
+  void Project(WorkerScratch::ChildGrid& g, int c) const {
+    if (((g.projected >> c) & 1u) != 0) return;
+    tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.u[c], g.v[c], g.z[c]);
+    g.projected |= 1u << c;
+  }
+
+  // True iff camera c sees foreground at the projection of the centre of the
+  // grid's node, which is a corner of all eight children: that pixel lies in
+  // every child's footprint, so the camera frees none of them, and, as the
+  // node lies in front of the camera and of every obstacle it overlaps
+  // (`clear`), each child's verdict in it is full or mixed in the silhouette.
+  bool CentreBlocks(WorkerScratch::ChildGrid& g, int c, std::uint32_t clear) const {
+    const silhouette::SilhouetteQuadtree* mask = masks_[c];
+    if (mask == nullptr || ((clear >> c) & 1u) == 0) return false;
+    Project(g, c);
+    if (*std::min_element(g.z[c], g.z[c] + 27) <= geometry::kMinFrontDepth) return false;
+    const int u = geometry::PixelOf(g.u[c][13]);
+    const int v = geometry::PixelOf(g.v[c][13]);
+    return u >= 0 && v >= 0 && u < mask->width() && v < mask->height() && mask->IsForeground(u, v);
+  }
+
   // Footprint of child i in camera c from the shared corner grid: bit-identical
   // to FootprintOf() of the child's own box (BoxProjector::ProjectGrid).
   geometry::Footprint ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i) const {
-    if (((g.projected >> c) & 1u) == 0) {
-      tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.u[c], g.v[c], g.z[c]);
-      g.projected |= 1u << c;
-    }
+    Project(g, c);
     return geometry::BoxProjector::FromCorners<3>(g.u[c], g.v[c], g.z[c], i & 1, (i >> 1) & 1,
                                                   (i >> 2) & 1);
   }
 
-  bool ChangedIn(int c, const geometry::Footprint& fp) const {
-    if ((all_changed_ >> c) & 1u) return true;
+  // Whether camera c's verdict on the box with footprint fp may have changed
+  // since the last update. Cameras in `unchanged` are known to be unchanged
+  // in an enclosing box; *settled tells that no box inside this one can have
+  // a change in camera c either (its footprint lies inside this one's).
+  bool ChangedIn(int c, const geometry::Footprint& fp, std::uint32_t unchanged,
+                 bool* settled) const {
+    *settled = true;
+    if (((unchanged >> c) & 1u) != 0) return false;
+    if ((all_changed_ >> c) & 1u) {
+      *settled = false;
+      return true;
+    }
     const silhouette::SilhouetteQuadtree* m = masks_[c];
     if (m == nullptr) return false;  // Still lost: its verdict (hidden) cannot change.
-    if (fp.side != geometry::Footprint::Side::kInFront) return false;  // Verdict is geometric.
+    if (fp.side != geometry::Footprint::Side::kInFront) {
+      *settled = false;  // A sub-box may lie in front.
+      return false;      // Verdict is geometric.
+    }
     const CameraView& view = tree_.cameras_[c];
     const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
-    return !clip.Empty() && m->AnyChanged(clip);
+    const bool changed = !clip.Empty() && m->AnyChanged(clip);
+    *settled = !changed;
+    return changed;
   }
 
   void FreeChildren(RootPool& pool, std::uint32_t first) {
@@ -188,10 +221,15 @@ class Octree::Updater {
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) {
         inherited_full = inherited_full || GetVerdict(verdicts, c) == Verdict::kFull;
+      } else if (CentreBlocks(g, c, clear)) {
+        // Sees foreground in every child and frees none: nothing to evaluate.
+        inherited_full = true;
       } else {
         mixed[num_mixed++] = c;
       }
     }
+    static_assert(static_cast<int>(LeafState::kOccupied) == 1);
+    if (num_mixed == 0 && inherited_full) return 0x5555u;  // Eight occupied leaves.
     std::uint32_t packed = 0;
     for (int i = 0; i < 8; ++i) {
       bool any_free = false;
@@ -230,7 +268,8 @@ class Octree::Updater {
   // `grid` is the parent's child grid, null for a root.
   void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force,
              std::uint32_t inherit, std::uint32_t parent_verdicts, std::uint32_t clear,
-             WorkerScratch::ChildGrid* grid, int child_index, Counters& k) {
+             std::uint32_t unchanged, WorkerScratch::ChildGrid* grid, int child_index,
+             Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
     const common::Box3 box = CellBox(tree_.config_.bounds, cell);
     auto footprint = [&](int c) {
@@ -259,7 +298,8 @@ class Octree::Updater {
         if (((node.valid >> c) & 1u) == 0 || GetVerdict(node.verdicts, c) != Verdict::kFree) {
           continue;
         }
-        if (!ChangedIn(c, footprint(c))) {
+        bool settled = false;
+        if (!ChangedIn(c, footprint(c), unchanged, &settled)) {
           // Other cameras were not checked for changes: their caches may be stale.
           pool.nodes[index].valid = static_cast<std::uint16_t>(1u << c);
           return;
@@ -269,12 +309,17 @@ class Octree::Updater {
 
     geometry::Footprint* fps = k.footprints[cell.level];
     std::uint32_t recompute = 0;
+    std::uint32_t child_unchanged = unchanged;
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) continue;
       fps[c] = footprint(c);
-      if (recompute_all || ((node.valid >> c) & 1u) == 0 || ChangedIn(c, fps[c])) {
+      if (recompute_all || ((node.valid >> c) & 1u) == 0) {
         recompute |= 1u << c;
+        continue;
       }
+      bool settled = false;
+      if (ChangedIn(c, fps[c], unchanged, &settled)) recompute |= 1u << c;
+      if (settled) child_unchanged |= 1u << c;
     }
     if (!recompute_all && recompute == 0 && !inherited_news && (node.flags & kHasPending) == 0) {
       return;  // Subtree still exact.
@@ -391,8 +436,8 @@ class Octree::Updater {
     std::uint8_t below = 0;
     for (std::uint32_t i = 0; i < 8; ++i) {
       const Cell child = cell.Child(i);
-      Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear, &g,
-            static_cast<int>(i), k);
+      Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
+            child_unchanged, &g, static_cast<int>(i), k);
       below |= pool.nodes[first + i].flags;
     }
     if (below != 0) pool.nodes[index].flags = kHasPending;
