@@ -154,6 +154,14 @@ const Field<OctreeSettings> kOctreeFields[] = {
      .meaning = "Resolution of the published occupancy grid: 2^publish_depth cells per axis, at "
                 "most depth. A published cell is occupied when any leaf inside it is.",
      .limits = {1, 10}},
+    {.key = "coarse_first_depth",
+     .member = &OctreeSettings::coarse_first_depth,
+     .meaning = "0: off. Otherwise a level below depth: each cycle first brings the octree up to "
+                "date down to this level, then refines two levels per pass, so a cycle that hits "
+                "its deadline still publishes a result as fine as its last completed pass "
+                "everywhere (unrefined cells read occupied) instead of whole unvisited regions. "
+                "A complete cycle gives the same result.",
+     .limits = {0, 16}},
 };
 
 const Field<MotionConfig> kMotionFields[] = {

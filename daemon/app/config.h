@@ -28,6 +28,7 @@ struct OctreeSettings {
   int boundary_coarsening = 3;       ///< Geometry-only boundaries stop this many levels early.
   double knowledge_filter_m3 = 0.0;  ///< Drop occupied components below this volume; 0 = off.
   int publish_depth = 7;             ///< Published grid: 2^publish_depth cells per axis (<= depth).
+  int coarse_first_depth = 4;        ///< Update down to this level first; 0 = off.
 };
 
 /// How far people can move: the capture-skew compensation grows each older

@@ -19,6 +19,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.bounds = config.cell.bounds;
   options.depth = config.octree.depth;
   options.boundary_coarsening = config.octree.boundary_coarsening;
+  options.coarse_first_depth = config.octree.coarse_first_depth;
   options.octree_threads = config.threads.octree;
   options.rate_hz = config.timing.rate_hz;
   options.deadline_ms = config.timing.deadline_ms;

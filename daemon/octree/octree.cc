@@ -10,6 +10,8 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 constexpr int kNumRoots = 512;
+// Every bit: a camera set that no real one (at most 16 cameras) fills.
+constexpr std::uint32_t kAllCameras = ~0u;
 
 inline Verdict GetVerdict(std::uint32_t verdicts, int camera) {
   return static_cast<Verdict>((verdicts >> (2 * camera)) & 3u);
@@ -72,13 +74,25 @@ struct alignas(64) Octree::WorkerScratch {
 /// One update pass: the per-worker traversal of roots.
 class Octree::Updater {
  public:
+  /// A pass does not split nodes at `split_limit` (the finest level: no
+  /// limit): a node there that needs finer work is left kCoarse (its subtree
+  /// as of the last update, to be brought up to date) or, when its subtree is
+  /// stale, pending. A kRefine pass then works only below such nodes:
+  /// everything above them is up to date.
+  enum class Pass { kFull, kRefine };
+
   Updater(Octree& tree, std::span<const silhouette::SilhouetteQuadtree* const> masks,
-          std::uint32_t all_changed, const UpdateControl& control)
+          std::uint32_t all_changed, const UpdateControl& control, Pass pass, int split_limit,
+          std::atomic<std::int64_t>& spent)
       : tree_(tree),
         masks_(masks),
         all_changed_(all_changed),
         control_(control),
-        boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening) {}
+        boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening),
+        split_limit_(split_limit),
+        root_unchanged_(pass == Pass::kRefine ? kAllCameras : 0u),
+        refine_(pass == Pass::kRefine),
+        spent_(spent) {}
 
   /// Per-worker counters, summed after the pass.
   using Counters = WorkerScratch;
@@ -87,7 +101,7 @@ class Octree::Updater {
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
-    Visit(pool, 0, cell, false, 0, 0, 0, 0, nullptr, 0, counters);
+    Visit(pool, 0, cell, false, 0, 0, 0, root_unchanged_, nullptr, 0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -278,6 +292,10 @@ class Octree::Updater {
     ++k.visited;
     Node node = pool.nodes[index];  // Copy: the pool may grow below.
     const bool recompute_all = force || (node.flags & kPending) != 0;
+    // Refinement of a node the coarse pass stopped at: its own verdicts are
+    // current, its subtree still needs this update's changes.
+    const bool coarse_here = (node.flags & kCoarse) != 0;
+    if (coarse_here) unchanged = 0;
     // Inherited verdicts are stored but never marked valid: when the parent
     // stops passing a camera down, the child computes its own verdict.
     bool inherited_news = false;  // An inherited verdict differs from the stored one.
@@ -293,7 +311,8 @@ class Octree::Updater {
 
     // Fast path: a free leaf stays free while one camera that certified it sees
     // no change in its footprint.
-    if (!recompute_all && node.state == kFreeLeaf && (node.flags & kHasPending) == 0) {
+    if (!recompute_all && !coarse_here && node.state == kFreeLeaf &&
+        (node.flags & kHasPending) == 0) {
       for (int c = 0; c < num_cameras; ++c) {
         if (((node.valid >> c) & 1u) == 0 || GetVerdict(node.verdicts, c) != Verdict::kFree) {
           continue;
@@ -318,15 +337,24 @@ class Octree::Updater {
         continue;
       }
       bool settled = false;
-      if (ChangedIn(c, fps[c], unchanged, &settled)) recompute |= 1u << c;
+      // A kCoarse node's verdicts are current (the pass that stopped at it
+      // computed them); only its children need to know what changed.
+      if (ChangedIn(c, fps[c], unchanged, &settled) && !coarse_here) recompute |= 1u << c;
       if (settled) child_unchanged |= 1u << c;
     }
-    if (!recompute_all && recompute == 0 && !inherited_news && (node.flags & kHasPending) == 0) {
+    if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
+        (node.flags & kHasPending) == 0) {
       return;  // Subtree still exact.
     }
     if (CheckAbort(k)) {
+      // Above the nodes the coarse pass stopped at (where every change is
+      // applied: `unchanged` holds every camera), the refinement pass meets
+      // only nodes that are up to date: they stay as they are, and the kCoarse
+      // nodes below become pending when the update ends (FinishCoarse).
+      // Anything else is stale from here down.
+      if (refine_ && !recompute_all && unchanged == kAllCameras) return;
+      if ((node.flags & kCapped) == 0) ++k.pending;  // Capped ones are counted at the end.
       pool.nodes[index].flags |= kPending;
-      ++k.pending;
       return;
     }
 
@@ -408,6 +436,12 @@ class Octree::Updater {
       }
     }
     pool.nodes[index].obstacle = obstacle;
+    if (cell.level >= split_limit_) {
+      // Coarse pass: refined by the next pass, its children kept.
+      pool.nodes[index].flags = kCapped | (recompute_all ? kPending : kCoarse);
+      pool.capped.push_back(index);
+      return;
+    }
     if (cell.level + 1 == tree_.config_.depth) {
       // Children at the finest level: evaluated together, stored in the node.
       const std::uint32_t packed =
@@ -448,8 +482,11 @@ class Octree::Updater {
   std::uint32_t all_changed_;
   const UpdateControl& control_;
   const int boundary_depth_;
+  const int split_limit_;               // Nodes at this level or deeper are not split.
+  const std::uint32_t root_unchanged_;  // Cameras whose changes are already applied.
+  const bool refine_;
   std::atomic<bool> aborted_{false};
-  std::atomic<std::int64_t> spent_{0};
+  std::atomic<std::int64_t>& spent_;  // Nodes recomputed, over the passes of an update.
 };
 
 Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
@@ -458,6 +495,7 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   HG_CHECK(config_.depth >= kRootLevel && config_.depth <= kMaxDepth);
   HG_CHECK(config_.num_threads >= 1);
   HG_CHECK(config_.boundary_coarsening >= 0);
+  HG_CHECK(config_.coarse_first_depth >= 0);
   HG_CHECK(static_cast<int>(cameras_.size()) <= kMaxCameras);
   roots_.resize(kNumRoots);
   Reset();
@@ -468,6 +506,21 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
 }
 
 Octree::~Octree() = default;
+
+std::int64_t Octree::FinishCoarse() {
+  // Nodes the refinement did not reach missed this update's changes below
+  // them: pending from now on. Their ancestors have kHasPending already.
+  std::int64_t left = 0;
+  for (RootPool& pool : roots_) {
+    for (const std::uint32_t index : pool.capped) {
+      Node& n = pool.nodes[index];
+      if ((n.flags & kCapped) == 0) continue;  // Refined.
+      n.flags = kPending;
+      ++left;
+    }
+  }
+  return left;
+}
 
 void Octree::Reset() {
   for (RootPool& pool : roots_) {
@@ -498,22 +551,44 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     last_version_[c] = m == nullptr ? 0 : m->version();
   }
 
-  Updater shared(*this, masks, all_changed, control);
   for (int w = 0; w < pool_->num_threads(); ++w) {
     WorkerScratch& k = scratch_[w];
     k.visited = k.verdicts = k.pending = 0;
     k.clock_countdown = 0;
   }
   // Roots are independent: whichever worker takes a root owns its pool for the pass.
-  auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
-  pool_->Run(kNumRoots, run);
-
+  std::atomic<std::int64_t> spent{0};
+  auto run_pass = [&](Updater::Pass pass, int split_limit) {
+    Updater shared(*this, masks, all_changed, control, pass, split_limit, spent);
+    auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
+    pool_->Run(kNumRoots, run);
+    return shared.aborted();
+  };
+  const bool coarse_first =
+      config_.coarse_first_depth > 0 && config_.coarse_first_depth < config_.depth;
   UpdateStats stats;
-  stats.aborted = shared.aborted();
+  if (coarse_first) {
+    for (RootPool& pool : roots_) pool.capped.clear();
+    // Coarse to fine: an abort leaves every part of the cell as fine as the
+    // last pass that completed, or finer.
+    bool aborted = run_pass(Updater::Pass::kFull, config_.coarse_first_depth);
+    stats.coarse_complete = !aborted;
+    // Every second level: each pass revisits the nodes the previous one stopped
+    // at, and stopping one level above the finest would revisit most nodes.
+    for (int level = config_.coarse_first_depth + 2; !aborted; level += 2) {
+      aborted = run_pass(Updater::Pass::kRefine, std::min(level, config_.depth));
+      if (level >= config_.depth) break;
+    }
+    stats.aborted = aborted;
+    stats.nodes_pending += FinishCoarse();
+  } else {
+    stats.aborted = run_pass(Updater::Pass::kFull, config_.depth);
+  }
   for (int w = 0; w < pool_->num_threads(); ++w) {
-    stats.nodes_visited += scratch_[w].visited;
-    stats.verdicts_computed += scratch_[w].verdicts;
-    stats.nodes_pending += scratch_[w].pending;
+    const WorkerScratch& k = scratch_[w];
+    stats.nodes_visited += k.visited;
+    stats.verdicts_computed += k.verdicts;
+    stats.nodes_pending += k.pending;
   }
   stats.update_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return stats;

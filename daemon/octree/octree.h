@@ -29,6 +29,13 @@ struct OctreeConfig {
   /// boundaries are static, and resolving them to the finest cell costs more
   /// than everything else. 0 resolves them exactly.
   int boundary_coarsening = 3;
+  /// Coarse first (0: off; otherwise a level below `depth`): each update
+  /// first brings the tree up to date down to this level only (a node there
+  /// that needs finer work reads as occupied meanwhile), then refines it in
+  /// passes, two levels at a time. An abort (a deadline) leaves a result as
+  /// fine as the last completed pass everywhere, or finer, instead of whole
+  /// roots left unvisited. A completed update gives the same leaves as without.
+  int coarse_first_depth = 0;
 };
 
 /// State of a leaf.
@@ -71,9 +78,13 @@ struct UpdateControl {
 /// What an update did.
 struct UpdateStats {
   bool aborted = false;
+  /// Coarse first: the coarse pass completed, so every node down to
+  /// coarse_first_depth is up to date (an abort left only finer work undone).
+  bool coarse_complete = false;
   std::int64_t nodes_visited = 0;      ///< Nodes whose footprints were computed.
   std::int64_t verdicts_computed = 0;  ///< Camera verdicts evaluated (quadtree queries).
-  std::int64_t nodes_pending = 0;      ///< Nodes left marked for the next update (abort).
+  /// Nodes this update left marked pending (abort, or coarse first not refined).
+  std::int64_t nodes_pending = 0;
   double update_ms = 0.0;
 };
 
@@ -140,7 +151,7 @@ class Octree {
     std::uint16_t valid = 0;               // Cameras whose cached verdict is current.
     std::uint16_t geometric = 0;           // Cameras whose kMixed verdict is geometric.
     std::uint8_t state = 0;                // NodeState.
-    std::uint8_t flags = 0;                // kPending | kHasPending.
+    std::uint8_t flags = 0;                // kPending | kHasPending | kCoarse | kCapped.
     std::uint32_t obstacle = 0;            // 2 bits per camera: ObstacleRelation (static).
   };
   // kPackedInner: a node one level above the finest whose eight children are
@@ -157,14 +168,23 @@ class Octree {
   }
   static constexpr std::uint8_t kPending = 1;
   static constexpr std::uint8_t kHasPending = 2;
+  // Only during an update with coarse first (FinishCoarse() removes them):
+  // kCoarse: stopped at by the coarse pass, subtree as of the last update;
+  // kCapped: stopped at by the coarse pass (kCoarse or pending), in `capped`.
+  static constexpr std::uint8_t kCoarse = 4;
+  static constexpr std::uint8_t kCapped = 8;
 
   /// Nodes of one root: nodes[0] is the root, blocks of 8 children follow.
   struct RootPool {
     std::vector<Node> nodes;
     std::vector<std::uint32_t> free_blocks;
+    std::vector<std::uint32_t> capped;  // Nodes the coarse pass stopped at, this update.
   };
   class Updater;
   struct WorkerScratch;
+
+  /// Ends an update with coarse first; returns the nodes left pending.
+  std::int64_t FinishCoarse();
 
   template <class Fn>
   void VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& cell, Fn& fn) const;

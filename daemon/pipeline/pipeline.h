@@ -30,6 +30,7 @@ struct PipelineOptions {
   common::Box3 bounds;
   int depth = 9;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
+  int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
   int octree_threads = 2;
   double rate_hz = 30.0;
   double deadline_ms = 25.0;

@@ -240,6 +240,75 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
   EXPECT_GT(aborted_frames, 20);
 }
 
+// Coarse first: a completed update gives the same leaves as a plain one; an
+// update aborted after its coarse pass is conservative and certifies at least
+// what a tree of the coarse depth does, whatever was left unrefined.
+TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
+  testing::RandomSceneOptions opt;
+  opt.num_cameras = 5;
+  opt.num_objects = 3;
+  opt.num_obstacles = 2;
+  RandomScene scene = testing::MakeRandomScene(44, opt);
+  const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+  constexpr int kDepth = 7, kCoarse = 4;
+  OctreeConfig config{scene.bounds, kDepth, 2};
+  config.coarse_first_depth = kCoarse;
+  Octree coarse_first(config, views);
+  Octree plain({scene.bounds, kDepth, 2}, views);
+  Quadtrees qt(scene.cameras);
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  int aborted_after_coarse = 0;
+  for (int frame = 0; frame < 40; ++frame) {
+    const Eigen::Vector3d step(0.03 * std::cos(frame * 0.4), -0.02, 0.01);
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
+    const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
+    qt.Build(masks);
+    plain.Update(qt.ptrs);
+    UpdateControl control;
+    const bool complete = frame % 4 == 3;
+    if (!complete) control.node_budget = static_cast<std::int64_t>(rng() % 6000);
+    const UpdateStats stats = coarse_first.Update(qt.ptrs, control);
+    if (complete) {
+      ASSERT_FALSE(stats.aborted);
+      ASSERT_TRUE(stats.coarse_complete);
+      ASSERT_EQ(stats.nodes_pending, 0);
+      ASSERT_EQ(testing::Leaves(coarse_first), testing::Leaves(plain)) << "frame " << frame;
+    }
+    // Never free where the exact result is not.
+    const DenseGrid got = testing::Rasterize(coarse_first);
+    const DenseGrid want = testing::Rasterize(plain);
+    for (std::size_t i = 0; i < want.states.size(); ++i) {
+      if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
+        ASSERT_EQ(want.states[i], static_cast<std::uint8_t>(LeafState::kFree))
+            << "frame " << frame << " cell " << i;
+      }
+    }
+    ExpectObjectsNotFree(coarse_first, scene.objects, rng, 200);
+    if (!stats.aborted || !stats.coarse_complete) continue;
+    ++aborted_after_coarse;
+    EXPECT_GT(stats.nodes_pending, 0);
+    // Everything a tree of the coarse depth certifies free is free here.
+    Octree coarse({scene.bounds, kCoarse, 1}, views);
+    Quadtrees fresh(scene.cameras);
+    fresh.Build(masks);
+    coarse.Update(fresh.ptrs);
+    coarse.ForEachLeaf([&](const Cell& cell, LeafState state) {
+      if (state != LeafState::kFree) return;
+      const common::Box3 box = CellBox(scene.bounds, cell);
+      for (int k = 0; k < 4; ++k) {
+        const Eigen::Vector3d t(u01(rng), u01(rng), u01(rng));
+        const Eigen::Vector3d p = box.min + t.cwiseProduct(box.max - box.min);
+        ASSERT_EQ(coarse_first.StateAt(p), PointState::kFree)
+            << "frame " << frame << " point " << p.transpose();
+      }
+    });
+    EXPECT_LE(coarse_first.Volume(LeafState::kOccupied),
+              coarse.Volume(LeafState::kOccupied) + 1e-9);
+  }
+  EXPECT_GT(aborted_after_coarse, 10);
+}
+
 // A lost camera sees nothing: nothing it alone certified stays free.
 TEST(OctreeLostCameraTest, LosingACameraOnlyGrowsOccupiedSpace) {
   testing::RandomSceneOptions opt;

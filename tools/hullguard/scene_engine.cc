@@ -41,9 +41,10 @@ SceneEngine::SceneEngine(sim::Scene scene, const SceneEngineOptions& options)
   }
   for (const auto& q : quadtrees_) quadtree_ptrs_.push_back(&q);
   undistorted_.resize(s.cameras.size());
-  tree_ = std::make_unique<octree::Octree>(
-      octree::OctreeConfig{s.bounds, options.depth, options.threads, options.boundary_coarsening},
-      std::move(views));
+  octree::OctreeConfig config{s.bounds, options.depth, options.threads,
+                              options.boundary_coarsening};
+  config.coarse_first_depth = options.coarse_first_depth;
+  tree_ = std::make_unique<octree::Octree>(config, std::move(views));
 }
 
 const common::ImageU8& SceneEngine::PinholeMask(int camera) const {

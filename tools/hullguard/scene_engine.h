@@ -20,6 +20,7 @@ struct SceneEngineOptions {
   int depth = 10;
   int threads = 2;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
+  int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
 };
 
 /// Wall-clock times of one frame's stages.
