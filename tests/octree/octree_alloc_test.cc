@@ -31,22 +31,26 @@ TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
   std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
   for (const auto& c : scene.cameras) trees.emplace_back(c.width, c.height);
   for (const auto& t : trees) ptrs.push_back(&t);
-  Octree tree({scene.bounds, 7, 2}, testing::MakeViews(scene.cameras, scene.obstacles));
-  long allocations_last_pass = -1;
-  std::int64_t visited = 0;
-  for (int pass = 0; pass < 3; ++pass) {
-    long allocations = 0;
-    for (const auto& masks : frames) {
-      const hg::testing::AllocationCounter counter;
-      for (std::size_t c = 0; c < trees.size(); ++c) trees[c].Build(masks[c].View(), 127);
-      const UpdateStats stats = tree.Update(ptrs);
-      allocations += counter.count();
-      visited += stats.nodes_visited;
+  for (const int coarse_first : {0, 3}) {
+    OctreeConfig config{scene.bounds, 7, 2};
+    config.coarse_first_depth = coarse_first;
+    Octree tree(config, testing::MakeViews(scene.cameras, scene.obstacles));
+    long allocations_last_pass = -1;
+    std::int64_t visited = 0;
+    for (int pass = 0; pass < 3; ++pass) {
+      long allocations = 0;
+      for (const auto& masks : frames) {
+        const hg::testing::AllocationCounter counter;
+        for (std::size_t c = 0; c < trees.size(); ++c) trees[c].Build(masks[c].View(), 127);
+        const UpdateStats stats = tree.Update(ptrs);
+        allocations += counter.count();
+        visited += stats.nodes_visited;
+      }
+      if (pass == 2) allocations_last_pass = allocations;
     }
-    if (pass == 2) allocations_last_pass = allocations;
+    EXPECT_GT(visited, 10000) << coarse_first;  // The frames did real work.
+    EXPECT_EQ(allocations_last_pass, 0) << coarse_first;
   }
-  EXPECT_GT(visited, 10000);  // The frames did real work.
-  EXPECT_EQ(allocations_last_pass, 0);
 }
 
 }  // namespace
