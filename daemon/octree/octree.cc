@@ -572,17 +572,20 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     // Coarse to fine: an abort leaves every part of the cell as fine as the
     // last pass that completed, or finer.
     bool aborted = run_pass(Updater::Pass::kFull, config_.coarse_first_depth);
-    stats.coarse_complete = !aborted;
+    if (!aborted) stats.refined_level = config_.coarse_first_depth;
     // Every second level: each pass revisits the nodes the previous one stopped
     // at, and stopping one level above the finest would revisit most nodes.
     for (int level = config_.coarse_first_depth + 2; !aborted; level += 2) {
-      aborted = run_pass(Updater::Pass::kRefine, std::min(level, config_.depth));
+      const int limit = std::min(level, config_.depth);
+      aborted = run_pass(Updater::Pass::kRefine, limit);
+      if (!aborted) stats.refined_level = limit;
       if (level >= config_.depth) break;
     }
     stats.aborted = aborted;
     stats.nodes_pending += FinishCoarse();
   } else {
     stats.aborted = run_pass(Updater::Pass::kFull, config_.depth);
+    if (!stats.aborted) stats.refined_level = config_.depth;
   }
   for (int w = 0; w < pool_->num_threads(); ++w) {
     const WorkerScratch& k = scratch_[w];

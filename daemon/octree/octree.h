@@ -78,9 +78,11 @@ struct UpdateControl {
 /// What an update did.
 struct UpdateStats {
   bool aborted = false;
-  /// Coarse first: the coarse pass completed, so every node down to
-  /// coarse_first_depth is up to date (an abort left only finer work undone).
-  bool coarse_complete = false;
+  /// The tree is exact down to this level everywhere (a node there that
+  /// needs finer work reads as occupied): config.depth when the update
+  /// completed; with coarse first, the level of its last completed pass; 0
+  /// when an abort left whole regions unvisited.
+  int refined_level = 0;
   std::int64_t nodes_visited = 0;      ///< Nodes whose footprints were computed.
   std::int64_t verdicts_computed = 0;  ///< Camera verdicts evaluated (quadtree queries).
   /// Nodes this update left marked pending (abort, or coarse first not refined).
