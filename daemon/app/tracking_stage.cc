@@ -24,9 +24,10 @@ void AtomicMax(std::atomic<double>* target, double value) {
   }
 }
 
-/// A complete update with every camera delivering (or lost after it did).
-bool Trackable(const pipeline::OccupancySnapshot& s) {
-  if (!s.complete) return false;
+/// A complete (or refined enough) update with every camera delivering (or
+/// lost after it did).
+bool Trackable(const pipeline::OccupancySnapshot& s, double voxel_m) {
+  if (!pipeline::RefinedForTracking(s, voxel_m)) return false;
   for (const pipeline::CameraHealth& c : s.health.cameras) {
     if (c.state == pipeline::CameraState::kStarting) return false;
   }
@@ -98,7 +99,7 @@ void TrackingStage::Offer(const std::shared_ptr<const pipeline::OccupancySnapsho
 }
 
 bool TrackingStage::RunOnce(const pipeline::OccupancySnapshot& snapshot) {
-  if (!Trackable(snapshot)) {
+  if (!Trackable(snapshot, tracker_.options().voxel_m)) {
     untracked_.fetch_add(1, std::memory_order_relaxed);
     return false;
   }

@@ -66,10 +66,11 @@ struct TrackingStats {
 /// (counted in TrackingStats::skipped); the thread runs at a lower priority
 /// (nice kTrackingNice) than fusion and capture, so on a busy machine tracking
 /// skips snapshots rather than delaying the occupancy. Snapshots of aborted
-/// updates, and those made while some camera has not delivered its first frame
-/// yet (start-up), are not tracked: they report space as occupied that no
-/// camera could look at (at start-up, the whole cell), which is no evidence
-/// of a person. A camera lost later (stale, failed) does not stop tracking;
+/// updates (unless coarse first refined them everywhere to cells of at most
+/// two tracking voxels: pipeline::RefinedForTracking), and those made while
+/// some camera has not delivered its first frame yet (start-up), are not
+/// tracked: they report space as occupied that no camera could look at (at
+/// start-up, the whole cell), which is no evidence of a person. A camera lost later (stale, failed) does not stop tracking;
 /// the cycle's degraded flag travels with the tracks.
 /// The static voxel states (KNOWN from the obstacles, OCCLUDED from the
 /// cameras) are built once, in the constructor. After warm-up a cycle

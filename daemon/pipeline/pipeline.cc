@@ -337,6 +337,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
   snapshot->sequence = ++sequence_;
   snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
   snapshot->complete = !stats.aborted;
+  snapshot->refined_cell_m = RefinedCellSize(options_.bounds, stats.refined_level);
   snapshot->bounds = options_.bounds;
   snapshot->depth = options_.publish_depth;
   health.degraded = health.degraded || stats.aborted;

@@ -3,6 +3,7 @@
 /// What one fusion cycle hands to its consumers: an immutable occupancy
 /// snapshot and the pipeline's health. Publishers read these, never the octree.
 
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -68,6 +69,11 @@ struct OccupancySnapshot {
   /// person can move since their own capture.
   std::int64_t stamp_ns = 0;
   bool complete = true;  ///< False when the update was aborted (still conservative).
+  /// The occupancy is exact down to octree cells of this size (m, longest
+  /// side): such a cell that needed finer work is listed whole. The finest
+  /// cell size when complete; 0 when an abort left whole regions unvisited
+  /// (listed occupied).
+  double refined_cell_m = 0.0;
   common::Box3 bounds;
   int depth = 0;                  ///< Publishing grid: 2^depth cells per axis.
   std::vector<GridRun> occupied;  ///< Cells that may hold a person (seen as foreground).
@@ -81,5 +87,18 @@ struct OccupancySnapshot {
   }
   PipelineHealth health;
 };
+
+/// Longest side of an octree cell at `level` over `bounds` (0 for level 0:
+/// nothing refined).
+[[nodiscard]] inline double RefinedCellSize(const common::Box3& bounds, int level) {
+  return level > 0 ? std::ldexp((bounds.max - bounds.min).maxCoeff(), -level) : 0.0;
+}
+
+/// Whether tracking may use the snapshot: complete, or aborted after coarse
+/// first refined it everywhere to cells of at most two tracking voxels (what
+/// it lists beyond a complete update then lies within such cells).
+[[nodiscard]] inline bool RefinedForTracking(const OccupancySnapshot& s, double voxel_m) {
+  return s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= 2.0 * voxel_m);
+}
 
 }  // namespace hg::pipeline

@@ -140,9 +140,10 @@ TEST(TrackingStageTest, CyclesReachTheConsumerAndAllocateNothingAfterWarmUp) {
 
 // An aborted update, or one made while a camera has no frame yet, reports
 // space as occupied that no camera looked at: no evidence of a person, so the
-// stage leaves it out (no cycle, no consumer call). A camera lost later does
-// not stop tracking.
-TEST(TrackingStageTest, AbortedAndStartingSnapshotsAreNotTracked) {
+// stage leaves it out (no cycle, no consumer call), unless coarse first refined
+// the aborted update everywhere to cells of at most two tracking voxels. A
+// camera lost later does not stop tracking.
+TEST(TrackingStageTest, UnrefinedAbortedAndStartingSnapshotsAreNotTracked) {
   int calls = 0;
   bool degraded = false;
   TrackingStage stage(tracking::TrackerOptions{}, kBounds, CornerCamerasScene(),
@@ -155,7 +156,10 @@ TEST(TrackingStageTest, AbortedAndStartingSnapshotsAreNotTracked) {
   snap.health.cameras.resize(2);
   for (pipeline::CameraHealth& c : snap.health.cameras) c.state = pipeline::CameraState::kOk;
   snap.complete = false;
-  EXPECT_FALSE(stage.RunOnce(snap));
+  EXPECT_FALSE(stage.RunOnce(snap));  // Regions left unvisited.
+  const double voxel = tracking::TrackerOptions{}.voxel_m;
+  snap.refined_cell_m = 2.5 * voxel;
+  EXPECT_FALSE(stage.RunOnce(snap));  // Refined, but coarser than two voxels.
   snap.complete = true;
   snap.health.cameras[1].state = pipeline::CameraState::kStarting;
   EXPECT_FALSE(stage.RunOnce(snap));
@@ -166,9 +170,13 @@ TEST(TrackingStageTest, AbortedAndStartingSnapshotsAreNotTracked) {
   EXPECT_TRUE(stage.RunOnce(snap));
   EXPECT_EQ(calls, 1);
   EXPECT_TRUE(degraded);
+  snap.complete = false;
+  snap.refined_cell_m = 1.5 * voxel;
+  EXPECT_TRUE(stage.RunOnce(snap));  // Aborted after refining to 1.5 voxels.
+  EXPECT_EQ(calls, 2);
   const TrackingStats stats = stage.stats();
-  EXPECT_EQ(stats.cycles, 1u);
-  EXPECT_EQ(stats.untracked, 2u);
+  EXPECT_EQ(stats.cycles, 2u);
+  EXPECT_EQ(stats.untracked, 3u);
 }
 
 // The thread: snapshots offered before it takes them are skipped, never

@@ -109,6 +109,18 @@ TEST_F(TrackEvalTest, TracksTwoPeopleAndReportsPlausibleMetrics) {
   EXPECT_EQ(head, std::string("\x89PNG\r\n\x1a\n", 8));
 }
 
+// As in the daemon, an update the deadline cut off before it was refined
+// anywhere (here: at once) is not tracked, and the report says so.
+TEST_F(TrackEvalTest, UpdatesCutOffByTheDeadlineAreNotTracked) {
+  const auto r = Hullguard("track-eval --scene " + Path("tiny.yaml") +
+                           " --frames 4 --depth 6 --publish-depth 6 --coarse-first 3"
+                           " --deadline-ms 0.001 --json");
+  ASSERT_EQ(r.code, 0) << r.err << r.out;
+  EXPECT_EQ(JsonNumber(r.out, "aborted_updates"), 4);
+  EXPECT_EQ(JsonNumber(r.out, "untracked_frames"), 4);
+  EXPECT_EQ(JsonNumber(r.out, "births"), 0);
+}
+
 TEST_F(TrackEvalTest, TextReportNamesTheMetrics) {
   const auto r = Hullguard("track-eval --scene " + Path("tiny.yaml") +
                            " --frames 4 --depth 6 --publish-depth 6");

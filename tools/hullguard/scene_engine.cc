@@ -51,7 +51,8 @@ const common::ImageU8& SceneEngine::PinholeMask(int camera) const {
   return undistorters_[camera] ? undistorted_[camera] : masks_[camera];
 }
 
-FrameTimes SceneEngine::Step(double t_s, const octree::UpdateControl& control) {
+FrameTimes SceneEngine::Step(double t_s, const octree::UpdateControl& control,
+                             double octree_budget_ms) {
   FrameTimes times;
   auto t0 = Clock::now();
   simulator_.RenderMasks(t_s, &masks_);
@@ -62,7 +63,12 @@ FrameTimes SceneEngine::Step(double t_s, const octree::UpdateControl& control) {
     quadtrees_[c].Build(PinholeMask(static_cast<int>(c)).View(), 127);
   }
   times.quadtree_ms = MsSince(t0);
-  times.octree = tree_->Update(quadtree_ptrs_, control);
+  octree::UpdateControl budgeted = control;
+  if (octree_budget_ms > 0.0) {
+    budgeted.deadline = std::chrono::steady_clock::now() +
+                        std::chrono::microseconds(std::llround(octree_budget_ms * 1e3));
+  }
+  times.octree = tree_->Update(quadtree_ptrs_, budgeted);
   return times;
 }
 

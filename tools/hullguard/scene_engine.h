@@ -35,8 +35,10 @@ class SceneEngine {
  public:
   SceneEngine(sim::Scene scene, const SceneEngineOptions& options);
 
-  /// Renders the scene at t_s and updates the octree under `control`.
-  FrameTimes Step(double t_s, const octree::UpdateControl& control = {});
+  /// Renders the scene at t_s and updates the octree under `control`; with
+  /// octree_budget_ms > 0, the update's deadline is that long after it starts.
+  FrameTimes Step(double t_s, const octree::UpdateControl& control = {},
+                  double octree_budget_ms = 0.0);
 
   [[nodiscard]] const octree::Octree& tree() const { return *tree_; }
   [[nodiscard]] const sim::Scene& scene() const { return simulator_.scene(); }

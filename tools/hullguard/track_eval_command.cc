@@ -41,6 +41,8 @@ struct TrackEvalFlags {
   double threshold_m = 0.5;
   int particles = tracking::ParticleFilterOptions{}.num_particles;
   double voxel_m = tracking::TrackerOptions{}.voxel_m;
+  double deadline_ms = 0.0;  // 0: no deadline.
+  int coarse_first_depth = 0;
   bool json = false;
   std::string plot;
 };
@@ -332,7 +334,9 @@ int RunTrackEval(const TrackEvalFlags& f) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - build_start)
           .count();
 
-  SceneEngine engine(std::move(loaded), {f.depth, f.threads});
+  SceneEngine engine(
+      std::move(loaded),
+      {.depth = f.depth, .threads = f.threads, .coarse_first_depth = f.coarse_first_depth});
   const sim::Scene& s = engine.scene();
   std::vector<Vector3d> distractors;
   for (const sim::Solid& o : s.foreground_objects) {
@@ -351,21 +355,35 @@ int RunTrackEval(const TrackEvalFlags& f) {
   std::vector<tracking::MotPoint> objects, hypotheses;
   std::vector<int> object_person;
   int max_tracks = 0;
+  int aborted = 0, untracked = 0;
   for (int frame = 0; frame < frames; ++frame) {
     const double t = f.start_s + frame * dt;
-    const FrameTimes times = engine.Step(t);
+    const FrameTimes times = engine.Step(t, {}, f.deadline_ms);
     if (frame > 0) octree_ms.push_back(times.octree.update_ms);
+    aborted += times.octree.aborted;
     FillSnapshot(engine.tree(), f.publish_depth, &bits, &snapshot);
     snapshot.sequence = static_cast<std::uint64_t>(frame);
     snapshot.stamp_ns = static_cast<std::int64_t>(std::llround(t * 1e9));
+    snapshot.complete = !times.octree.aborted;
+    snapshot.refined_cell_m = pipeline::RefinedCellSize(s.bounds, times.octree.refined_level);
 
     const double cpu0 = ThreadCpuMs();
     const auto wall0 = std::chrono::steady_clock::now();
-    tracker.Update(snapshot);
+    // As the daemon does: an update that left regions unrefined is not tracked
+    // (the tracks stay as they were, and are scored so).
+    const bool tracked = pipeline::RefinedForTracking(snapshot, f.voxel_m);
+    if (tracked) {
+      tracker.Update(snapshot);
+    } else {
+      ++untracked;
+    }
     const double wall =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - wall0).count();
-    track_ms.push_back(wall);
-    track_cpu_ms.push_back(ThreadCpuMs() - cpu0);
+    const double cpu = ThreadCpuMs() - cpu0;
+    if (tracked) {  // Times of tracker cycles only.
+      track_ms.push_back(wall);
+      track_cpu_ms.push_back(cpu);
+    }
 
     FrameRecord record;
     record.t_s = t;
@@ -385,9 +403,9 @@ int RunTrackEval(const TrackEvalFlags& f) {
       record.people.emplace_back(static_cast<int>(i), body.centre_W);
       ++people[i].frames;
     }
-    if (!objects.empty()) {
+    if (tracked && !objects.empty()) {
       per_person_ms.push_back(wall / static_cast<double>(objects.size()));
-      per_person_cpu_ms.push_back(track_cpu_ms.back() / static_cast<double>(objects.size()));
+      per_person_cpu_ms.push_back(cpu / static_cast<double>(objects.size()));
     }
     unknown_voxels.push_back(static_cast<double>(tracker.voxel_map().unknown_voxels().size()));
     hypotheses.clear();
@@ -444,7 +462,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
         " \"mota\": %s, \"motp_m\": %s, \"id_switches\": %lld, \"misses\": %lld, "
         "\"false_positives\": %lld, \"ignored\": %lld, \"objects\": %lld, \"matches\": %lld,\n"
         " \"births\": %llu, \"deaths\": %llu, \"reacquisitions\": %llu, \"object_tracks\": %llu, "
-        "\"max_tracks\": %d,\n"
+        "\"max_tracks\": %d, \"aborted_updates\": %d, \"untracked_frames\": %d,\n"
         " \"tracking_ms\": {\"mean\": %.4f, \"median\": %.4f, \"p99\": %.4f, \"max\": %.4f},\n"
         " \"tracking_cpu_ms\": {\"mean\": %.4f, \"p99\": %.4f},\n"
         " \"tracking_ms_per_person\": {\"mean\": %.4f, \"p99\": %.4f},\n"
@@ -460,10 +478,10 @@ int RunTrackEval(const TrackEvalFlags& f) {
         static_cast<long long>(tot.objects), static_cast<long long>(tot.matches),
         static_cast<unsigned long long>(ts.births), static_cast<unsigned long long>(ts.deaths),
         static_cast<unsigned long long>(ts.reacquisitions),
-        static_cast<unsigned long long>(ts.object_births), max_tracks, Mean(track_ms), wall.median,
-        wall.p99, wall.max, Mean(track_cpu_ms), cpu.p99, Mean(per_person_ms), person.p99,
-        Mean(per_person_cpu_ms), person_cpu.p99, Mean(unknown_voxels), build_ms, oct.median,
-        oct.p99);
+        static_cast<unsigned long long>(ts.object_births), max_tracks, aborted, untracked,
+        Mean(track_ms), wall.median, wall.p99, wall.max, Mean(track_cpu_ms), cpu.p99,
+        Mean(per_person_ms), person.p99, Mean(per_person_cpu_ms), person_cpu.p99,
+        Mean(unknown_voxels), build_ms, oct.median, oct.p99);
     for (std::size_t i = 0; i < people.size(); ++i) {
       const PersonStats& p = people[i];
       std::printf(
@@ -488,6 +506,10 @@ int RunTrackEval(const TrackEvalFlags& f) {
         static_cast<long long>(tot.mismatches), static_cast<long long>(tot.misses),
         static_cast<long long>(tot.false_positives), static_cast<long long>(tot.objects),
         f.threshold_m);
+    if (aborted > 0) {
+      std::printf("  octree updates aborted by the deadline: %d; frames not tracked: %d\n", aborted,
+                  untracked);
+    }
     if (tot.ignored > 0) {
       std::printf("  tracks on foreground objects or people outside the cell (not scored): %lld\n",
                   static_cast<long long>(tot.ignored));
@@ -553,6 +575,13 @@ void RegisterTrackEval(CLI::App& app, int* exit_code) {
   cmd->add_option("--threshold", flags->threshold_m,
                   "CLEAR MOT match threshold between track and body centre (m)")
       ->check(CLI::PositiveNumber);
+  cmd->add_option("--deadline-ms", flags->deadline_ms,
+                  "Abort each octree update this long after it starts, as the daemon does "
+                  "(0: none); updates left unrefined are not tracked")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--coarse-first", flags->coarse_first_depth,
+                  "octree.coarse_first_depth (0: off; docs/reconstruction.md)")
+      ->check(CLI::Range(0, 16));
   cmd->add_option("--particles", flags->particles, "Particles per person")
       ->check(CLI::Range(1, 100000));
   cmd->add_option("--voxel", flags->voxel_m, "Tracking voxel edge (m)")
