@@ -100,6 +100,19 @@ void ExpectMatchesOracle(const DenseGrid& octree_grid, const DenseGrid& oracle) 
   EXPECT_GT(free_cells, oracle.states.size() / 4);
 }
 
+// Nothing is free in `tree` that the exact result (same depth) keeps occupied or occluded.
+void ExpectFreeOnlyWhereExactIsFree(const Octree& tree, const Octree& exact, int frame) {
+  const DenseGrid got = testing::Rasterize(tree);
+  const DenseGrid want = testing::Rasterize(exact);
+  ASSERT_EQ(got.states.size(), want.states.size());
+  for (std::size_t i = 0; i < want.states.size(); ++i) {
+    if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
+      ASSERT_EQ(want.states[i], static_cast<std::uint8_t>(LeafState::kFree))
+          << "frame " << frame << " cell " << i;
+    }
+  }
+}
+
 class RandomSceneTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
@@ -223,14 +236,7 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
     Quadtrees fresh(scene.cameras);
     fresh.Build(masks);
     exact.Update(fresh.ptrs);
-    const DenseGrid got = testing::Rasterize(tree);
-    const DenseGrid want = testing::Rasterize(exact);
-    for (std::size_t i = 0; i < want.states.size(); ++i) {
-      if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
-        ASSERT_EQ(want.states[i], static_cast<std::uint8_t>(LeafState::kFree))
-            << "frame " << frame << " cell " << i;
-      }
-    }
+    ExpectFreeOnlyWhereExactIsFree(tree, exact, frame);
     ExpectObjectsNotFree(tree, scene.objects, rng, 300);
     if (complete) {
       EXPECT_FALSE(stats.aborted);
@@ -275,15 +281,7 @@ TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
       ASSERT_EQ(stats.nodes_pending, 0);
       ASSERT_EQ(testing::Leaves(coarse_first), testing::Leaves(plain)) << "frame " << frame;
     }
-    // Never free where the exact result is not.
-    const DenseGrid got = testing::Rasterize(coarse_first);
-    const DenseGrid want = testing::Rasterize(plain);
-    for (std::size_t i = 0; i < want.states.size(); ++i) {
-      if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
-        ASSERT_EQ(want.states[i], static_cast<std::uint8_t>(LeafState::kFree))
-            << "frame " << frame << " cell " << i;
-      }
-    }
+    ExpectFreeOnlyWhereExactIsFree(coarse_first, plain, frame);
     ExpectObjectsNotFree(coarse_first, scene.objects, rng, 200);
     if (!stats.aborted || stats.refined_level < kCoarse) continue;
     ++aborted_after_coarse;
