@@ -70,11 +70,10 @@ struct TrackingStats {
 /// two tracking voxels: pipeline::RefinedForTracking), and those made while
 /// some camera has not delivered its first frame yet (start-up), are not
 /// tracked: they report space as occupied that no camera could look at (at
-/// start-up, the whole cell), which is no evidence of a person. A camera lost later (stale, failed) does not stop tracking;
-/// the cycle's degraded flag travels with the tracks.
-/// The static voxel states (KNOWN from the obstacles, OCCLUDED from the
-/// cameras) are built once, in the constructor. After warm-up a cycle
-/// allocates nothing (the consumer must not either).
+/// start-up, the whole cell), which is no evidence of a person. A camera lost later (stale, failed)
+/// does not stop tracking; the cycle's degraded flag travels with the tracks. The static voxel
+/// states (KNOWN from the obstacles, OCCLUDED from the cameras) are built once, in the constructor.
+/// After warm-up a cycle allocates nothing (the consumer must not either).
 ///
 /// Thread safety: construct, Start(), Stop() and destroy from one owning
 /// thread; Offer() from one producer thread (the fusion thread); stats() from
