@@ -90,7 +90,6 @@ class Octree::Updater {
         control_(control),
         boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening),
         split_limit_(split_limit),
-        root_unchanged_(pass == Pass::kRefine ? kAllCameras : 0u),
         refine_(pass == Pass::kRefine),
         spent_(spent) {}
 
@@ -101,7 +100,9 @@ class Octree::Updater {
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
-    Visit(pool, 0, cell, false, 0, 0, 0, root_unchanged_, nullptr, 0, counters);
+    // A refinement pass starts where every change is applied already.
+    const std::uint32_t unchanged = refine_ ? kAllCameras : 0u;
+    Visit(pool, 0, cell, false, 0, 0, 0, unchanged, nullptr, 0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -482,8 +483,7 @@ class Octree::Updater {
   std::uint32_t all_changed_;
   const UpdateControl& control_;
   const int boundary_depth_;
-  const int split_limit_;               // Nodes at this level or deeper are not split.
-  const std::uint32_t root_unchanged_;  // Cameras whose changes are already applied.
+  const int split_limit_;  // Nodes at this level or deeper are not split.
   const bool refine_;
   std::atomic<bool> aborted_{false};
   std::atomic<std::int64_t>& spent_;  // Nodes recomputed, over the passes of an update.

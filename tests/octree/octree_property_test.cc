@@ -113,6 +113,15 @@ void ExpectFreeOnlyWhereExactIsFree(const Octree& tree, const Octree& exact, int
   }
 }
 
+// The scene of the moving-sequence tests: five cameras, three objects, two obstacles.
+RandomScene SequenceScene(std::uint64_t seed) {
+  testing::RandomSceneOptions opt;
+  opt.num_cameras = 5;
+  opt.num_objects = 3;
+  opt.num_obstacles = 2;
+  return testing::MakeRandomScene(seed, opt);
+}
+
 class RandomSceneTest : public ::testing::TestWithParam<int> {};
 
 TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
@@ -177,11 +186,7 @@ INSTANTIATE_TEST_SUITE_P(Seeds, RandomSceneTest, ::testing::Range(0, 24));
 // Moving objects: the incremental octree equals a from-scratch build every
 // frame, leaf by leaf, and one thread equals several.
 TEST(OctreeSequenceTest, IncrementalEqualsFromScratchAndThreadsAgree) {
-  testing::RandomSceneOptions opt;
-  opt.num_cameras = 5;
-  opt.num_objects = 3;
-  opt.num_obstacles = 2;
-  RandomScene scene = testing::MakeRandomScene(77, opt);
+  RandomScene scene = SequenceScene(77);
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   Quadtrees qt(scene.cameras);
   Octree incremental({scene.bounds, 7, 1}, views);
@@ -250,11 +255,7 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
 // update aborted after its coarse pass is conservative and certifies at least
 // what a tree of the coarse depth does, whatever was left unrefined.
 TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
-  testing::RandomSceneOptions opt;
-  opt.num_cameras = 5;
-  opt.num_objects = 3;
-  opt.num_obstacles = 2;
-  RandomScene scene = testing::MakeRandomScene(44, opt);
+  RandomScene scene = SequenceScene(44);
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   constexpr int kDepth = 7, kCoarse = 4;
   OctreeConfig config{scene.bounds, kDepth, 2};
