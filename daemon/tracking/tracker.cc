@@ -325,27 +325,28 @@ void Tracker::Births() {
     for (const std::uint32_t seed : unknown) {
       // Explained, or visited already.
       if ((marks_[seed] & (kUnexplainedMark | kVisitedMark)) != kUnexplainedMark) continue;
-      // One component: breadth-first from the seed through UNKNOWN neighbours.
+      // One component: breadth-first from the seed through unexplained
+      // UNKNOWN neighbours. A tracked person's voxels do not join it: the
+      // fringes of a hull that stick out of a gate stay separate pieces, and
+      // the search never walks a whole tracked body.
       queue_.clear();
       queue_.push_back(seed);
       marks_[seed] |= kVisitedMark;
-      int unexplained = 0;
       for (std::size_t head = 0; head < queue_.size(); ++head) {
         const std::uint32_t i = queue_[head];
         const Eigen::Vector3i c = g.Coords(i);
-        unexplained += (marks_[i] & kUnexplainedMark) != 0 ? 1 : 0;
         for (const Eigen::Vector3i& d : neighbours_) {
           const Eigen::Vector3i q = c + d;
           if (!g.InGrid(q.x(), q.y(), q.z())) continue;
           const std::uint32_t qi = g.Index(q.x(), q.y(), q.z());
-          // Marked and not visited: an UNKNOWN voxel of this cycle.
-          if (marks_[qi] != 0 && (marks_[qi] & kVisitedMark) == 0) {
+          // Unexplained and not visited: an UNKNOWN voxel of this cycle outside every gate.
+          if ((marks_[qi] & (kUnexplainedMark | kVisitedMark)) == kUnexplainedMark) {
             marks_[qi] |= kVisitedMark;
             queue_.push_back(qi);
           }
         }
       }
-      if (unexplained * vv < options_.birth_min_volume_m3) continue;
+      if (static_cast<double>(queue_.size()) * vv < options_.birth_min_volume_m3) continue;
       // The component's evidence of a new person: unexplained voxels that the
       // cameras see past every track; some of them must stand on something.
       int evidence = 0;
@@ -355,7 +356,6 @@ void Tracker::Births() {
       Vector3d sum = Vector3d::Zero();
       Vector3d sum_sq = Vector3d::Zero();
       for (const std::uint32_t i : queue_) {
-        if ((marks_[i] & kUnexplainedMark) == 0) continue;
         const Eigen::Vector3i c = g.Coords(i);
         const Vector3d p = g.Centre(c.x(), c.y(), c.z());
         if (!SeenPastTracks(i, p)) continue;

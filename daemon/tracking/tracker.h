@@ -172,9 +172,9 @@ struct TrackerStats {
 ///    volume) and the occluded share;
 /// 3. deaths: time without support above the timeout (the occluded one for
 ///    occluded tracks), or the estimate ellipsoid entirely outside the grid;
-/// 4. births: connected components of the UNKNOWN voxels (searched from the
-///    UNKNOWN list, never over the grid) whose voxels outside every track's
-///    gate and that the cameras see past every supported track
+/// 4. births: connected components of the unexplained UNKNOWN voxels (those
+///    outside every track's gate; searched from the UNKNOWN list, never over
+///    the grid) whose voxels that the cameras see past every supported track
 ///    (explain_margin_m, birth_min_views) reach birth_min_volume_m3, some of
 ///    them standing on something (the floor, an obstacle, or space no camera
 ///    sees: birth_max_floating_m), start a

@@ -37,7 +37,10 @@ VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states)
   prefix_.resize(static_cast<std::size_t>(grid_.num_rows()) * (grid_.nx() + 1));
   for (int row = 0; row < grid_.num_rows(); ++row) RebuildRow(row);
   const int columns = grid_.nx() * grid_.ny();
-  column_prefix_.resize(static_cast<std::size_t>(columns) * (grid_.nz() + 1));
+  constexpr std::size_t kLine = 64 / sizeof(RowCounts);  // Entries per cache line.
+  const std::size_t lines = (static_cast<std::size_t>(grid_.nz()) + 1 + kLine - 1) / kLine;
+  column_stride_ = (lines | 1) * kLine;
+  column_prefix_.resize(static_cast<std::size_t>(columns) * column_stride_);
   for (int column = 0; column < columns; ++column) RebuildColumn(column);
   column_dirty_.assign(columns, 0);
   dirty_columns_.reserve(columns);
@@ -154,7 +157,7 @@ void VoxelMap::RebuildColumn(int column) {
   const int nz = grid_.nz();
   const std::size_t layer = static_cast<std::size_t>(grid_.nx()) * grid_.ny();
   const std::uint8_t* f = flags_.data() + column;
-  RowCounts* p = column_prefix_.data() + static_cast<std::size_t>(column) * (nz + 1);
+  RowCounts* p = column_prefix_.data() + static_cast<std::size_t>(column) * column_stride_;
   RowCounts acc;
   p[0] = acc;
   for (int z = 0; z < nz; ++z, f += layer) {
