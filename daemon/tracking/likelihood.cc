@@ -425,9 +425,11 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   // most ~1.5e-8 * k / voxel there (at the tangent rows), far inside it.
   e.tol = 1e-6 * (1.0 + e.h_idx.x());
   // Fewer z columns than x rows (a standing person: about a third as many).
-  if (axis == SumAxis::kZScalar) return CountColumns(map, e, own_region, FillColumnBatch);
-  if (axis == SumAxis::kZ || (axis == SumAxis::kAuto && e.h_idx.z() > e.h_idx.x())) {
-    return CountColumns(map, e, own_region, ColumnBatchFiller());
+  const bool scalar = axis == SumAxis::kXScalar || axis == SumAxis::kZScalar;
+  const FillColumnBatchFn fill = scalar ? FillColumnBatch : ColumnBatchFiller();
+  if (axis == SumAxis::kZ || axis == SumAxis::kZScalar ||
+      (axis == SumAxis::kAuto && e.h_idx.z() > e.h_idx.x())) {
+    return CountColumns(map, e, own_region, fill);
   }
 
   // Layers within the bounding box, and per layer the rows within its
@@ -444,6 +446,15 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   const int z_hi = std::min(CeilInt(e.c_idx.z() + e.h_idx.z()), g.nz() - 1);
   // Row differences are summed packed and unpacked every kMaxSummedRows rows,
   // before a field could overflow.
+  ColumnLine line;  // The batch filler's rows: y across, ends along x.
+  line.origin_y = g.origin().y();
+  line.voxel = g.voxel_m();
+  line.cy = cy;
+  line.inv_hy = inv_hy;
+  line.cz_idx = cx_idx;
+  line.hz_idx = hx_idx;
+  line.tol = tol;
+  ColumnBatch batch;
   CountAccumulator acc;
   int foreign = 0;
   for (int z = z_lo; z <= z_hi; ++z) {
@@ -467,35 +478,34 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
     y_lo = std::max(y_lo, 0);
     y_hi = std::min(y_hi, g.ny() - 1);
     if (y_lo > y_hi) continue;
-    const RowCounts* p = map.RowPrefix(y_lo, z);
-    for (int y = y_lo; y <= y_hi; ++y, p += stride) {
-      // The same arithmetic as VoxelGrid::CentreY and Ellipsoid::Contains.
-      const double dy = (g.CentreY(y) - cy) * inv_hy;
-      const double q = dy * dy + dz2;
-      // q > 1: dx^2 + q >= q > 1 also after rounding, no centre is inside.
-      if (q > 1.0) continue;
-      // Each end is the floor of the closed form shifted by -tol and by +tol:
-      // equal results mean no voxel centre within tol of the boundary, so the
-      // end is exact; otherwise RowSpan re-tests with the predicate. (FastFloor
-      // may round an argument within 2^-22 below an integer up, which can only
-      // make the two differ.)
-      const double w = std::sqrt(1.0 - q) * hx_idx;
-      const double t_lo = cx_idx - w;
-      const double t_hi = cx_idx + w;
-      Span span{FastFloor(t_lo - tol) + 1, FastFloor(t_hi - tol)};
-      if (((FastFloor(t_lo + tol) + 1) ^ span.lo) | (FastFloor(t_hi + tol) ^ span.hi)) {
-        span = RowSpan(g, e, q);
-      }
-      span.lo = std::max(span.lo, 0);
-      span.hi = std::min(span.hi, nx - 1);
-      if (span.lo > span.hi) continue;
-      const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
-      acc.Add(row, span.hi - span.lo + 1);
-      if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
-        const double py = g.CentreY(y);
-        foreign += ForeignUnknown(p, span, row, own_region, [&](const HalfSpace& hs, Span* s) {
-          ClipToHalfSpace(g, hs, py, pz, s);
-        });
+    // The closed-form row ends of the layer's rows, in batches (the column
+    // filler with z and x swapped: q = dz^2 + dy^2, ends along x). Each end is
+    // the floor of the closed form shifted by -tol and by +tol: equal results
+    // mean no voxel centre within tol of the boundary, so the end is exact;
+    // otherwise RowSpan re-tests with the predicate. (FastFloor may round an
+    // argument within 2^-22 below an integer up, which can only make the two
+    // differ.) q > 1: dx^2 + q >= q > 1 also after rounding, no centre is
+    // inside.
+    line.dx2 = dz2;
+    for (int y0 = y_lo; y0 <= y_hi; y0 += kBatch) {
+      const int n = std::min(kBatch, y_hi - y0 + 1);
+      fill(line, y0, 0, (n + 3) & ~3, &batch);
+      const RowCounts* p = map.RowPrefix(y0, z);
+      for (int k = 0; k < n; ++k, p += stride) {
+        if (batch.kind[k] == kOutside) continue;
+        Span span{batch.lo[k], batch.hi[k]};
+        if (batch.kind[k] == kAmbiguous) span = RowSpan(g, e, batch.dy2[k] + dz2);
+        span.lo = std::max(span.lo, 0);
+        span.hi = std::min(span.hi, nx - 1);
+        if (span.lo > span.hi) continue;
+        const std::uint64_t row = p[span.hi + 1].packed - p[span.lo].packed;
+        acc.Add(row, span.hi - span.lo + 1);
+        if (!own_region.empty() && RowCounts::Unknown(row) > 0) {
+          const double py = g.CentreY(y0 + k);
+          foreign += ForeignUnknown(p, span, row, own_region, [&](const HalfSpace& hs, Span* s) {
+            ClipToHalfSpace(g, hs, py, pz, s);
+          });
+        }
       }
     }
   }

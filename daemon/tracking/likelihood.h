@@ -83,10 +83,10 @@ struct EllipsoidCounts {
 ///
 /// Which lines CountVoxels sums along: kAuto takes z columns when the
 /// ellipsoid is taller than it is long in x (fewer columns than rows), else x
-/// rows; kX and kZ force one (tests, benchmarks). kZScalar is kZ without the
-/// vector instructions it uses where the processor has AVX2 (tests). The
-/// result is the same.
-enum class SumAxis { kAuto, kX, kZ, kZScalar };
+/// rows; kX and kZ force one (tests, benchmarks). kXScalar and kZScalar are
+/// kX and kZ without the vector instructions they use where the processor has
+/// AVX2 (tests). The result is the same.
+enum class SumAxis { kAuto, kX, kZ, kXScalar, kZScalar };
 
 /// Cost: O(lines spanned * (1 + own_region.size())): per (y, z) row, or per
 /// (x, y) column, the extent of the ellipsoid (and of the region) along it is

@@ -161,7 +161,8 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
     SCOPED_TRACE(trial);
     const EllipsoidCounts brute = BruteCounts(map, e, region);
     const double brute_score = BruteScore(map, e, region, w);
-    for (const SumAxis axis : {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ, SumAxis::kZScalar}) {
+    for (const SumAxis axis :
+         {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar, SumAxis::kZScalar}) {
       SCOPED_TRACE(static_cast<int>(axis));
       const EllipsoidCounts fast = CountVoxels(map, e, region, axis);
       ExpectSameCounts(fast, brute);
@@ -185,7 +186,7 @@ TEST(LikelihoodTest, BoundaryTiesMatchBruteForce) {
           HalfSpace::NearerTo(mid - Vector3d(0.1, 0.0, 0.0), mid + Vector3d(0.1, 0.0, 0.0)),
           HalfSpace::NearerTo(mid + Vector3d(0.0, 0.0, 0.125), mid + Vector3d(0.0, 0.0, 0.375))};
       SCOPED_TRACE(testing::Message() << "cx " << cx << " a " << a);
-      for (const SumAxis axis : {SumAxis::kX, SumAxis::kZ, SumAxis::kZScalar}) {
+      for (const SumAxis axis : {SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar, SumAxis::kZScalar}) {
         SCOPED_TRACE(static_cast<int>(axis));
         ExpectSameCounts(CountVoxels(map, e, {}, axis), BruteCounts(map, e, {}));
         ExpectSameCounts(CountVoxels(map, e, region, axis), BruteCounts(map, e, region));
@@ -202,7 +203,7 @@ TEST(LikelihoodTest, BelowTheFloorCounts) {
   // A ball of radius 0.2 (1.6 voxels) around the centre of voxel (0, 0, 0):
   // the lattice offsets with di^2 + dj^2 + dk^2 <= 2.56.
   const Ellipsoid ball{Vector3d::Constant(0.0625), Vector3d::Constant(0.2)};
-  for (const SumAxis axis : {SumAxis::kX, SumAxis::kZ, SumAxis::kZScalar}) {
+  for (const SumAxis axis : {SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar, SumAxis::kZScalar}) {
     const EllipsoidCounts m = CountVoxels(map, ball, {}, axis);
     EXPECT_EQ(m.below_floor, 5);
     EXPECT_EQ(m.free, 4 + 3);
