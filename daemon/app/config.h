@@ -158,7 +158,7 @@ struct LoggingConfig {
 /// weights are the paper's rho, sigma, tau and epsilon.
 struct TrackingConfig {
   bool enabled = true;
-  double voxel_m = 0.04;             ///< Edge of the tracking voxels.
+  double voxel_m = 0.05;             ///< Edge of the tracking voxels.
   int particles = 300;               ///< Particles per track.
   int max_tracks = 16;               ///< Tracks held at most (preallocated).
   double rho_unknown = 1.0;          ///< Likelihood score of an occupied voxel.

@@ -26,7 +26,7 @@ namespace hg::tracking {
 /// Every parameter of the tracking stage, with its default.
 struct TrackerOptions {
   /// Edge of the tracking voxels (m).
-  double voxel_m = 0.04;
+  double voxel_m = 0.05;
   LikelihoodWeights likelihood;
   ParticleFilterOptions filter;
   /// Tracks held at most (filters are allocated up front); births beyond are dropped.

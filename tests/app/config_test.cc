@@ -418,7 +418,7 @@ TEST(HullguarddTest, CheckConfig) {
 TEST(ConfigTrackingTest, DefaultsAreTheTrackersOwn) {
   const Config c = Parse(kMinimal);
   EXPECT_TRUE(c.tracking.enabled);
-  EXPECT_EQ(c.tracking.voxel_m, 0.04);
+  EXPECT_EQ(c.tracking.voxel_m, 0.05);
   EXPECT_EQ(c.tracking.particles, 300);
   EXPECT_EQ(c.tracking.max_tracks, 16);
   EXPECT_EQ(c.tracking.rho_unknown, 1.0);
@@ -542,7 +542,7 @@ TEST(ConfigTrackingTest, ReferenceDocListsTheSection) {
   const std::string md = ConfigReferenceMarkdown();
   EXPECT_NE(md.find("| `tracking` | map |"), std::string::npos);
   EXPECT_NE(md.find("| `tracking.enabled` | bool | true | - |"), std::string::npos);
-  EXPECT_NE(md.find("| `tracking.voxel_m` | number | 0.04 | 0.01 .. 1 |"), std::string::npos);
+  EXPECT_NE(md.find("| `tracking.voxel_m` | number | 0.05 | 0.01 .. 1 |"), std::string::npos);
   EXPECT_NE(md.find("| `tracking.particles` | integer | 300 | 1 .. 100000 |"), std::string::npos);
   for (const char* key :
        {"`tracking.rho_unknown`", "`tracking.sigma_occluded`", "`tracking.tau_known`",
