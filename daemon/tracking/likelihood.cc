@@ -59,8 +59,12 @@ void ClipToHalfSpace(const VoxelGrid& g, const HalfSpace& h, double py, double p
   const double nx = h.normal.x();
   const double s = h.normal.y() * py + h.normal.z() * pz;
   auto inside = [&](int x) { return nx * g.CentreX(x) + s <= h.offset; };
-  if (nx == 0.0) {
-    if (!(s <= h.offset)) span->hi = span->lo - 1;
+  if (span->lo > span->hi) return;
+  // Monotone: both ends inside, all inside; both outside, none. Mostly one of
+  // the two (the plane between two people stands nearly upright).
+  const bool lo_in = inside(span->lo);
+  if (lo_in == inside(span->hi)) {
+    if (!lo_in) span->hi = span->lo - 1;
     return;
   }
   const double t = ((h.offset - s) / nx - g.origin().x()) / g.voxel_m() - 0.5;
@@ -75,8 +79,12 @@ void ClipColumnToHalfSpace(const VoxelGrid& g, const HalfSpace& h, double px, do
   const double a = h.normal.x() * px;
   const double b = h.normal.y() * py;
   auto inside = [&](int z) { return a + (b + nz * g.CentreZ(z)) <= h.offset; };
-  if (nz == 0.0) {
-    if (!inside(span->lo)) span->hi = span->lo - 1;
+  if (span->lo > span->hi) return;
+  // Monotone: both ends inside, all inside; both outside, none. Mostly one of
+  // the two (the plane between two people stands nearly upright).
+  const bool lo_in = inside(span->lo);
+  if (lo_in == inside(span->hi)) {
+    if (!lo_in) span->hi = span->lo - 1;
     return;
   }
   // One division: the estimate needs no exactness (ClipMonotone corrects it).

@@ -153,9 +153,10 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
     const int planes = trial % 4;
     for (int k = 0; k < planes; ++k) {
       // Bisectors between the ellipsoid's centre and nearby points, some with
-      // normals exactly perpendicular to x (n.x == 0).
+      // normals exactly perpendicular to x (n.x == 0) or to z (n.z == 0).
       Vector3d other = e.centre_W + 0.4 * Vector3d(unit(rng), unit(rng), unit(rng));
       if (k == 1) other.x() = e.centre_W.x();
+      if (k == 2) other.z() = e.centre_W.z();
       region.push_back(HalfSpace::NearerTo(e.centre_W, other));
     }
     SCOPED_TRACE(trial);
