@@ -290,13 +290,6 @@ void Tracker::Assess(Slot* s, double dt_s) {
   s->time_since_support_s = supported ? 0.0 : s->time_since_support_s + dt_s;
 }
 
-bool Tracker::Explained(const Vector3d& p_W) const {
-  for (const Gate& g : gates_) {
-    if ((p_W - g.centre_W).cwiseProduct(g.inv_half_axes).squaredNorm() <= 1.0) return true;
-  }
-  return false;
-}
-
 void Tracker::Births() {
   gates_.clear();
   for (const Slot& s : slots_) {
@@ -310,15 +303,41 @@ void Tracker::Births() {
   const VoxelGrid& g = map_.grid();
   const double vv = g.voxel_volume_m3();
   const std::span<const std::uint32_t> unknown = map_.unknown_voxels();
-  // Every UNKNOWN voxel once against the gates. When the unexplained voxels
-  // together are less than a person (the common case: everybody is tracked),
-  // no component can start a track and the search is skipped.
+  // Every UNKNOWN voxel once against the gates, a run of the UNKNOWN list
+  // (consecutive voxels of one x row) at a time: each gate covers an interval
+  // of the row. When the unexplained voxels together are less than a person
+  // (the common case: everybody is tracked), no component can start a track
+  // and the search is skipped.
   int unexplained_total = 0;
-  for (const std::uint32_t i : unknown) {
-    const Eigen::Vector3i c = g.Coords(i);
-    const bool explained = Explained(g.Centre(c.x(), c.y(), c.z()));
-    marks_[i] = explained ? kExplainedMark : kUnexplainedMark;
-    unexplained_total += explained ? 0 : 1;
+  const int nx = g.nx();
+  for (std::size_t k = 0; k < unknown.size();) {
+    const std::uint32_t first = unknown[k];
+    const Eigen::Vector3i c = g.Coords(first);
+    std::size_t end = k + 1;
+    while (end < unknown.size() && unknown[end] == first + (end - k) &&
+           c.x() + static_cast<int>(end - k) < nx) {
+      ++end;
+    }
+    const int x_last = c.x() + static_cast<int>(end - k) - 1;
+    for (std::size_t j = k; j < end; ++j) marks_[unknown[j]] = kUnexplainedMark;
+    for (const Gate& gate : gates_) {
+      const double dy = (g.CentreY(c.y()) - gate.centre_W.y()) * gate.inv_half_axes.y();
+      const double dz = (g.CentreZ(c.z()) - gate.centre_W.z()) * gate.inv_half_axes.z();
+      const double r = 1.0 - (dy * dy + dz * dz);
+      if (r < 0.0) continue;
+      // Voxel centres within the gate's x extent on this row.
+      const double half = std::sqrt(r) / gate.inv_half_axes.x();
+      const double lo = (gate.centre_W.x() - half - g.origin().x()) / g.voxel_m() - 0.5;
+      const double hi = (gate.centre_W.x() + half - g.origin().x()) / g.voxel_m() - 0.5;
+      const int a = std::max(c.x(), static_cast<int>(std::ceil(std::clamp(lo, -1.0, 1.0 * nx))));
+      const int b = std::min(x_last, static_cast<int>(std::floor(std::clamp(hi, -1.0, 1.0 * nx))));
+      for (int x = a; x <= b; ++x)
+        marks_[first + static_cast<std::uint32_t>(x - c.x())] = kExplainedMark;
+    }
+    for (std::size_t j = k; j < end; ++j) {
+      unexplained_total += marks_[unknown[j]] == kUnexplainedMark ? 1 : 0;
+    }
+    k = end;
   }
   if (unexplained_total * vv >= options_.birth_min_volume_m3) {
     PrepareSightTests();

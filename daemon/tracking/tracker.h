@@ -259,8 +259,6 @@ class Tracker {
   /// The line-of-sight tests of this cycle's supported tracks.
   void PrepareSightTests();
   void Publish();
-  /// Inside a live track's gate.
-  [[nodiscard]] bool Explained(const Eigen::Vector3d& p_W) const;
 
   struct Gate {
     Eigen::Vector3d centre_W;
