@@ -70,6 +70,7 @@ constexpr std::uint8_t kUnexplainedMark = 2;
 constexpr std::uint8_t kVisitedMark = 4;
 constexpr std::uint8_t kResolvedMark = 8;
 constexpr std::uint8_t kGroundedMark = 16;
+constexpr std::uint8_t kEvidenceMark = 32;  // Evidence of the component being examined.
 
 bool Overlap(const common::Box3& a, const common::Box3& b, double margin) {
   return (a.min.array() - margin <= b.max.array()).all() &&
@@ -383,21 +384,40 @@ void Tracker::Births() {
         sum_sq += p.cwiseProduct(p);
         z_min = std::min(z_min, c.z());
         z_max = std::max(z_max, c.z());
-        ++layer_evidence_[c.z()];
+        marks_[i] |= kEvidenceMark;
         grounded = grounded || Grounded(i);
       }
       // Tall: a layer at birth_min_height_m or higher holds a head's
       // cross-section of evidence; the thin tip that silhouette cones leave
-      // above a low object does not.
+      // above a low object does not. Counted are the interior voxels of a
+      // layer's evidence (its four horizontal neighbours are evidence too):
+      // a voxel that merely overlaps an occupied cell makes the evidence up
+      // to one voxel wider all round, which at coarse voxels would pass a
+      // tip of a few square centimetres for a head.
+      const int z_tall =
+          std::max(0, static_cast<int>(std::ceil(options_.birth_min_height_m / g.voxel_m() - 0.5)));
+      if (z_max >= z_tall) {
+        const std::uint32_t row = static_cast<std::uint32_t>(g.nx());
+        for (const std::uint32_t i : queue_) {
+          if ((marks_[i] & kEvidenceMark) == 0) continue;
+          const Eigen::Vector3i c = g.Coords(i);
+          if (c.z() < z_tall || c.x() == 0 || c.x() == g.nx() - 1 || c.y() == 0 ||
+              c.y() == g.ny() - 1) {
+            continue;
+          }
+          if ((marks_[i - 1] & marks_[i + 1] & marks_[i - row] & marks_[i + row] & kEvidenceMark) !=
+              0) {
+            ++layer_evidence_[c.z()];
+          }
+        }
+      }
       bool tall = options_.birth_min_height_m <= 0.0;
       const double voxel_area = g.voxel_m() * g.voxel_m();
-      for (int z = std::max(z_min, 0); z <= z_max; ++z) {
-        if ((z + 0.5) * g.voxel_m() >= options_.birth_min_height_m &&
-            layer_evidence_[z] * voxel_area >= kHeadAreaM2) {
-          tall = true;
-        }
+      for (int z = std::max(z_min, z_tall); z <= z_max; ++z) {
+        if (layer_evidence_[z] * voxel_area >= kHeadAreaM2) tall = true;
         layer_evidence_[z] = 0;
       }
+      for (const std::uint32_t i : queue_) marks_[i] &= static_cast<std::uint8_t>(~kEvidenceMark);
       if (grounded) StartOrReacquire(evidence, sum, sum_sq, tall);
     }
   }

@@ -54,7 +54,9 @@ struct TrackerOptions {
   double birth_max_floating_m = 0.1;
   /// People come in standing: a new track is a person's when its evidence
   /// reaches this height above the grid's bottom (m): some layer of voxels
-  /// there holds at least a head's cross-section (kHeadAreaM2) of it. A
+  /// there holds at least a head's cross-section (kHeadAreaM2) of it, counted
+  /// without the layer's boundary voxels (the occupancy's cells make the
+  /// evidence up to one voxel wider than what they hold). A
   /// parcel or a cart put down in the cell occupies space like a person (and
   /// its silhouette cones leave a thin tip above it): it gets an object track,
   /// filtered like a person's so that it holds its share of the evidence (a
@@ -283,7 +285,8 @@ class Tracker {
     Eigen::Vector3d camera_S;  // Camera centre in the unit-sphere frame.
     double camera_norm2_minus_1 = 0.0;
   };
-  /// Evidence voxels per layer of the component being examined (zero between).
+  /// Interior evidence voxels per layer of the component being examined
+  /// (zero between).
   std::vector<int> layer_evidence_;
   /// Cross-section of evidence that counts as a head in a layer (m^2): about a
   /// third of an adult head's, less than the tip of a low object's hull.

@@ -1,5 +1,6 @@
 #include "tracking/tracker.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -164,6 +165,33 @@ TEST(TrackerTest, OnlyStandingPeopleStartTracks) {
   EXPECT_LT((later.tracks()[0].centre_W - c).norm(), 0.15);
   EXPECT_EQ(later.stats().promotions, 1u);
   EXPECT_EQ(later.stats().births, 1u);
+}
+
+// The silhouette cones of a low object leave a thin tip of occupancy above
+// it, which the occupancy's cells widen to a few voxels across: not a head. A
+// parcel with a tip three voxels square reaching 1.3 m gets an object track.
+TEST(TrackerTest, ThinTipAboveAParcelIsNoHead) {
+  Tracker tracker = OpenCellTracker();
+  const VoxelGrid& g = tracker.voxel_map().grid();
+  std::vector<std::uint32_t> voxels;
+  AppendVoxelsInside(g, {Vector3d(3.0, 3.0, 0.3), Vector3d(0.35, 0.35, 0.3)}, &voxels);
+  const Eigen::Vector3i centre = g.VoxelOf(Vector3d(3.0, 3.0, 0.0));
+  const int top = g.VoxelOf(Vector3d(0.0, 0.0, 1.3)).z();
+  ASSERT_GE(9 * g.voxel_m() * g.voxel_m(), 0.01);  // Three voxels square would pass for a head.
+  for (int z = g.VoxelOf(Vector3d(0.0, 0.0, 0.6)).z(); z <= top; ++z) {
+    for (int y = centre.y() - 1; y <= centre.y() + 1; ++y) {
+      for (int x = centre.x() - 1; x <= centre.x() + 1; ++x) voxels.push_back(g.Index(x, y, z));
+    }
+  }
+  std::sort(voxels.begin(), voxels.end());
+  voxels.erase(std::unique(voxels.begin(), voxels.end()), voxels.end());
+  for (int frame = 0; frame < 30; ++frame) {
+    tracker.voxel_map().SetUnknown(voxels);
+    tracker.Step(StampNs(frame));
+    ASSERT_TRUE(tracker.tracks().empty()) << "frame " << frame;
+  }
+  EXPECT_EQ(tracker.stats().object_births, 1u);
+  EXPECT_EQ(tracker.stats().births, 0u);
 }
 
 // Two people walk past each other shoulder to shoulder (their blobs touch and
