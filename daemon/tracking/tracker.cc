@@ -397,16 +397,20 @@ void Tracker::Births() {
       const int z_tall =
           std::max(0, static_cast<int>(std::ceil(options_.birth_min_height_m / g.voxel_m() - 0.5)));
       if (z_max >= z_tall) {
-        const std::uint32_t row = static_cast<std::uint32_t>(g.nx());
+        const std::int64_t row = g.nx();
         for (const std::uint32_t i : queue_) {
           if ((marks_[i] & kEvidenceMark) == 0) continue;
           const Eigen::Vector3i c = g.Coords(i);
-          if (c.z() < z_tall || c.x() == 0 || c.x() == g.nx() - 1 || c.y() == 0 ||
-              c.y() == g.ny() - 1) {
-            continue;
-          }
-          if ((marks_[i - 1] & marks_[i + 1] & marks_[i - row] & marks_[i + row] & kEvidenceMark) !=
-              0) {
+          if (c.z() < z_tall) continue;
+          // Beyond the cell's sides counts as evidence: someone entering
+          // continues there.
+          auto evidence_at = [&](int dx, int dy) {
+            const int x = c.x() + dx;
+            const int y = c.y() + dy;
+            if (x < 0 || x >= g.nx() || y < 0 || y >= g.ny()) return true;
+            return (marks_[i + dx + static_cast<std::int64_t>(dy) * row] & kEvidenceMark) != 0;
+          };
+          if (evidence_at(-1, 0) && evidence_at(1, 0) && evidence_at(0, -1) && evidence_at(0, 1)) {
             ++layer_evidence_[c.z()];
           }
         }
