@@ -100,6 +100,14 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
     if (t.skipped > 0) {
       line.insert(line.size() - 2, std::string(" skipped ").append(std::to_string(t.skipped)));
     }
+    // Snapshots of updates that did not refine far enough to track on: at a
+    // depth the machine cannot finish within the deadline, most of them.
+    if (t.untracked > 0) {
+      line.insert(line.size() - 2, std::string(" untracked ")
+                                       .append(std::to_string(t.untracked))
+                                       .append(" of ")
+                                       .append(std::to_string(t.untracked + t.cycles)));
+    }
   }
   for (const pipeline::CameraHealth& c : s.health.cameras) {
     char cam[128];
