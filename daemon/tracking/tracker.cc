@@ -227,10 +227,13 @@ void Tracker::Update(const pipeline::OccupancySnapshot& snapshot) {
 }
 
 void Tracker::Step(std::int64_t stamp_ns) {
-  double dt = options_.first_dt_s;
-  if (has_stamp_) {
-    dt = std::clamp(static_cast<double>(stamp_ns - last_stamp_ns_) * 1e-9, 1e-3, options_.max_dt_s);
-  }
+  // Time since the previous cycle: ages and times without support count all of
+  // it (a track that lost its person during a long gap dies, and a birth near
+  // it re-acquires its id, instead of a stale track lingering beside a new
+  // one); the filters' motion model only max_dt_s of it.
+  double elapsed = options_.first_dt_s;
+  if (has_stamp_) elapsed = std::max(static_cast<double>(stamp_ns - last_stamp_ns_) * 1e-9, 1e-3);
+  const double dt = std::min(elapsed, options_.max_dt_s);
   last_stamp_ns_ = stamp_ns;
   has_stamp_ = true;
   ++stats_.cycles;
@@ -256,7 +259,7 @@ void Tracker::Step(std::int64_t stamp_ns) {
   for (Slot& s : slots_) {
     if (!s.alive) continue;
     s.filter->Step(dt, map_, options_.likelihood, world_, s.region);
-    Assess(&s, dt);
+    Assess(&s, elapsed);
     const double timeout =
         s.age_s < options_.tentative_age_s
             ? options_.tentative_death_timeout_s
@@ -264,9 +267,11 @@ void Tracker::Step(std::int64_t stamp_ns) {
     const Ellipsoid& e = s.filter->estimate().ellipsoid;
     const bool left = ((e.centre_W + e.half_axes_m).array() < covered.min.array()).any() ||
                       ((e.centre_W - e.half_axes_m).array() > covered.max.array()).any();
-    if (s.time_since_support_s > timeout || left) {
+    if (left) {
       s.alive = false;
       if (s.person) ++stats_.deaths;
+    } else if (s.time_since_support_s > timeout) {
+      s.dying = true;  // Unless a birth re-acquires it below.
     } else if (!s.person &&
                e.centre_W.z() + e.half_axes_m.z() - covered.min.z() >= options_.promote_min_top_m) {
       s.person = true;  // Stood up.
@@ -275,8 +280,14 @@ void Tracker::Step(std::int64_t stamp_ns) {
     }
   }
 
-  // 4. Births.
+  // 4. Births (which may re-acquire a dying track), then the deaths.
   Births();
+  for (Slot& s : slots_) {
+    if (!s.dying) continue;
+    s.dying = false;
+    s.alive = false;
+    if (s.person) ++stats_.deaths;
+  }
   Publish();
 }
 
@@ -294,7 +305,7 @@ void Tracker::Assess(Slot* s, double dt_s) {
 void Tracker::Births() {
   gates_.clear();
   for (const Slot& s : slots_) {
-    if (!s.alive) continue;
+    if (!s.alive || s.dying) continue;
     const FilterEstimate& e = s.filter->estimate();
     const Vector3d sd = e.centre_covariance_m2.diagonal().cwiseMax(0.0).cwiseSqrt();
     const Vector3d half =
@@ -542,6 +553,7 @@ void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vecto
                         MixSeed(options_.seed ^ stats_.cycles, lost->id));
     Assess(lost, 0.0);
     lost->time_since_support_s = 0.0;
+    lost->dying = false;
     ++stats_.reacquisitions;
     return;
   }

@@ -119,8 +119,10 @@ struct TrackerOptions {
   /// Two tracks split the evidence (Voronoi) while the bounds of their particle
   /// clouds, grown by this margin, overlap (m).
   double overlap_margin_m = 0.1;
-  /// Time step of the first cycle and largest step between two cycles (s);
-  /// steps are clamped to [1e-3, max_dt_s].
+  /// Time step of the first cycle and largest step of the filters' motion
+  /// model between two cycles (s): steps are clamped to [1e-3, max_dt_s].
+  /// Track ages and times without support count the whole time between
+  /// cycles.
   double first_dt_s = 1.0 / 30.0;
   double max_dt_s = 0.5;
   /// Seed of the filters' random engines (each track mixes in its id).
@@ -172,8 +174,10 @@ struct TrackerStats {
 ///    passing close never feed one filter);
 /// 2. every filter steps; its estimate ellipsoid gives support (own UNKNOWN
 ///    volume) and the occluded share;
-/// 3. deaths: time without support above the timeout (the occluded one for
-///    occluded tracks), or the estimate ellipsoid entirely outside the grid;
+/// 3. deaths: the estimate ellipsoid entirely outside the grid, or time
+///    without support above the timeout (the occluded one for occluded
+///    tracks; such a track dies after the births, which may still re-acquire
+///    it);
 /// 4. births: connected components of the unexplained UNKNOWN voxels (those
 ///    outside every track's gate; searched from the UNKNOWN list, never over
 ///    the grid) whose voxels that the cameras see past every supported track
@@ -211,8 +215,9 @@ class Tracker {
   void Update(const pipeline::OccupancySnapshot& snapshot);
 
   /// Runs a cycle on the current voxel states (set UNKNOWN through
-  /// voxel_map() first). stamp_ns: capture time of the data; the step is the
-  /// time since the previous cycle, clamped to [1 ms, max_dt_s].
+  /// voxel_map() first). stamp_ns: capture time of the data; the filters'
+  /// step is the time since the previous cycle, clamped to [1 ms, max_dt_s];
+  /// deaths count the whole time.
   void Step(std::int64_t stamp_ns);
 
   [[nodiscard]] VoxelMap& voxel_map() { return map_; }
@@ -230,6 +235,7 @@ class Tracker {
   struct Slot {
     std::unique_ptr<ParticleFilter> filter;
     bool alive = false;
+    bool dying = false;  // Past its timeout this cycle; dies unless a birth re-acquires it.
     bool person = true;  // False: an object track (not published).
     std::uint32_t id = 0;
     double age_s = 0.0;

@@ -167,6 +167,32 @@ TEST(TrackerTest, OnlyStandingPeopleStartTracks) {
   EXPECT_EQ(later.stats().births, 1u);
 }
 
+// The tracker misses 2.5 s (a daemon whose updates were too coarse to track
+// on) while the person walks on 2 m: afterwards there is one track, with the
+// person's id, not a stale one beside a new one.
+TEST(TrackerTest, LongGapLeavesNoStaleTrack) {
+  Tracker tracker = OpenCellTracker();
+  const Vector3d v(0.8, 0.0, 0.0);
+  const Vector3d start(0.5, 2.0, 0.9);
+  int frame = 0;
+  for (; frame < 30; ++frame) {
+    SetBlobs(&tracker, {Person(start + v * (frame * kDt))});
+    tracker.Step(StampNs(frame));
+  }
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  const std::uint32_t id = tracker.tracks()[0].id;
+  frame += 75;  // 2.5 s without a cycle.
+  for (int k = 0; k < 10; ++k, ++frame) {
+    const Vector3d p = start + v * (frame * kDt);
+    SetBlobs(&tracker, {Person(p)});
+    tracker.Step(StampNs(frame));
+    ASSERT_LE(tracker.tracks().size(), 1u) << "cycle " << k;
+  }
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  EXPECT_EQ(tracker.tracks()[0].id, id);
+  EXPECT_LT((tracker.tracks()[0].centre_W - (start + v * ((frame - 1) * kDt))).norm(), 0.2);
+}
+
 // The silhouette cones of a low object leave a thin tip of occupancy above
 // it, which the occupancy's cells widen to a few voxels across: not a head. A
 // parcel with a tip three voxels square reaching 1.3 m gets an object track.
