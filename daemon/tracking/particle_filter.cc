@@ -21,6 +21,20 @@ ParticleFilter::ParticleFilter(const ParticleFilterOptions& options) : options_(
   collision_free_.reserve(n);
 }
 
+void ParticleFilter::SetParticleCount(int count) {
+  HG_CHECK(count >= 1 && count <= options_.num_particles);
+  const auto n = static_cast<std::size_t>(count);
+  const std::size_t old = particles_.size();
+  if (n == old) return;
+  scratch_.resize(n);  // Within the capacity reserved at construction.
+  for (std::size_t i = 0; i < n; ++i) scratch_[i] = particles_[i * old / n];
+  particles_.resize(n);
+  particles_.swap(scratch_);
+  weights_.assign(n, 1.0 / static_cast<double>(n));
+  collided_.resize(n);
+  UpdateCloudBounds();
+}
+
 Vector3d ParticleFilter::ClampHalfAxes(const ParticleFilterOptions& o, const Vector3d& h) {
   const Vector3d lo(o.min_half_axis_xy_m, o.min_half_axis_xy_m, o.min_half_axis_z_m);
   const Vector3d hi(o.max_half_axis_xy_m, o.max_half_axis_xy_m, o.max_half_axis_z_m);

@@ -102,6 +102,12 @@ class ParticleFilter {
   void Step(double dt_s, const VoxelMap& map, const LikelihoodWeights& weights,
             const CollisionWorld& world, std::span<const HalfSpace> own_region = {});
 
+  /// Sets the number of particles to `count` in [1, options().num_particles]
+  /// without allocating: an evenly spaced subset of the current particles,
+  /// or each repeated (after a step they are equally weighted, so either
+  /// keeps their distribution).
+  void SetParticleCount(int count);
+
   [[nodiscard]] const FilterEstimate& estimate() const { return estimate_; }
   /// The particles (after the last resampling: equally weighted).
   [[nodiscard]] std::span<const Ellipsoid> particles() const { return particles_; }

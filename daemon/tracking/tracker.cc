@@ -89,6 +89,7 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
   Require(Finite(o.likelihood.free), "likelihood.free", "must be finite", &p);
   Require(f.num_particles >= 1 && f.num_particles <= 1000000, "filter.num_particles",
           "must be in [1, 1000000]", &p);
+  Require(o.object_particles >= 1, "object_particles", "must be >= 1", &p);
   Require(f.position_noise_m_per_sqrt_s >= 0.0 && Finite(f.position_noise_m_per_sqrt_s),
           "filter.position_noise_m_per_sqrt_s", "must be >= 0", &p);
   Require(f.vertical_noise_m_per_sqrt_s >= 0.0 && Finite(f.vertical_noise_m_per_sqrt_s),
@@ -275,6 +276,7 @@ void Tracker::Step(std::int64_t stamp_ns) {
     } else if (!s.person &&
                e.centre_W.z() + e.half_axes_m.z() - covered.min.z() >= options_.promote_min_top_m) {
       s.person = true;  // Stood up.
+      s.filter->SetParticleCount(options_.filter.num_particles);
       ++stats_.births;
       ++stats_.promotions;
     }
@@ -575,6 +577,9 @@ void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vecto
   s.age_s = 0.0;
   s.time_since_support_s = 0.0;
   s.region.clear();
+  s.filter->SetParticleCount(
+      tall ? options_.filter.num_particles
+           : std::min(options_.object_particles, options_.filter.num_particles));
   s.filter->Reset(initial, Vector3d::Zero(), MixSeed(options_.seed, s.id));
   Assess(&s, 0.0);
   s.time_since_support_s = 0.0;

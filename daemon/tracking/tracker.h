@@ -29,6 +29,10 @@ struct TrackerOptions {
   double voxel_m = 0.05;
   LikelihoodWeights likelihood;
   ParticleFilterOptions filter;
+  /// Particles of an object track (at most filter.num_particles; a person's
+  /// track has filter.num_particles). An object track is not published and
+  /// only holds its share of the evidence: a parcel does not walk away.
+  int object_particles = 100;
   /// Tracks held at most (filters are allocated up front); births beyond are dropped.
   int max_tracks = 16;
   /// Components of UNKNOWN voxels: 26-connected (faces, edges, corners) when
@@ -59,8 +63,9 @@ struct TrackerOptions {
   /// evidence up to one voxel wider than what they hold). A
   /// parcel or a cart put down in the cell occupies space like a person (and
   /// its silhouette cones leave a thin tip above it): it gets an object track,
-  /// filtered like a person's so that it holds its share of the evidence (a
-  /// person passing it is not drawn onto it) but not published. A person who
+  /// filtered like a person's (with object_particles) so that it holds its
+  /// share of the evidence (a person passing it is not drawn onto it) but not
+  /// published. A person who
   /// crouches or crawls once tracked stays a person. 0: every track is a
   /// person's.
   double birth_min_height_m = 1.0;

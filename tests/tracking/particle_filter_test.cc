@@ -108,6 +108,35 @@ TEST(ParticleFilterTest, ConvergesOntoABlob) {
   EXPECT_LT(e.velocity_W_mps.norm(), 0.3);
 }
 
+// Fewer particles (an object track) and back (it stood up): the cloud stays
+// where it was, and the filter keeps converging with either count.
+TEST(ParticleFilterTest, ParticleCountChangesKeepTheCloud) {
+  VoxelMap map = OpenCell();
+  const Ellipsoid blob = Person({1.7, 2.3, 0.9});
+  SetBlobs(&map, {blob});
+  ParticleFilter f(ParticleFilterOptions{});
+  f.Reset({blob.centre_W + Vector3d(0.2, -0.15, 0.05), Vector3d(0.35, 0.35, 0.7)}, Vector3d::Zero(),
+          1);
+  for (int k = 0; k < 30; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  auto mean = [&] {
+    Vector3d m = Vector3d::Zero();
+    for (const Ellipsoid& p : f.particles()) m += p.centre_W;
+    return Vector3d(m / static_cast<double>(f.particles().size()));
+  };
+  const Vector3d before = mean();
+  f.SetParticleCount(100);
+  ASSERT_EQ(f.particles().size(), 100u);
+  EXPECT_LT((mean() - before).norm(), 0.03);
+  for (int k = 0; k < 30; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  EXPECT_LT((f.estimate().ellipsoid.centre_W - blob.centre_W).norm(), 0.06);
+  const Vector3d small = mean();
+  f.SetParticleCount(ParticleFilterOptions{}.num_particles);
+  ASSERT_EQ(f.particles().size(), static_cast<std::size_t>(ParticleFilterOptions{}.num_particles));
+  EXPECT_LT((mean() - small).norm(), 1e-9);  // Each particle repeated three times.
+  for (int k = 0; k < 30; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  EXPECT_LT((f.estimate().ellipsoid.centre_W - blob.centre_W).norm(), 0.05);
+}
+
 TEST(ParticleFilterTest, FollowsAMovingBlob) {
   VoxelMap map = OpenCell();
   const Vector3d start(0.8, 1.2, 0.9);

@@ -60,11 +60,13 @@ TEST(TrackerOptionsTest, EveryProblemIsReported) {
   o.voxel_m = 0.0;
   o.filter.collision_radius_m = 0.5;  // Not smaller than the half-axes.
   o.occluded_min_share = 1.5;
+  o.object_particles = 0;
   const std::vector<OptionProblem> p = CheckOptions(o);
-  ASSERT_EQ(p.size(), 3u);
+  ASSERT_EQ(p.size(), 4u);
   EXPECT_EQ(p[0].key, "voxel_m");
-  EXPECT_EQ(p[1].key, "filter.collision_radius_m");
-  EXPECT_EQ(p[2].key, "occluded_min_share");
+  EXPECT_EQ(p[1].key, "object_particles");
+  EXPECT_EQ(p[2].key, "filter.collision_radius_m");
+  EXPECT_EQ(p[3].key, "occluded_min_share");
   try {
     OpenCellTracker(o);
     FAIL() << "no exception";
@@ -157,6 +159,10 @@ TEST(TrackerTest, OnlyStandingPeopleStartTracks) {
     later.Step(StampNs(frame));
     ASSERT_TRUE(later.tracks().empty()) << "frame " << frame;
   }
+  // An object track, with fewer particles (the first id).
+  ASSERT_NE(later.filter(1), nullptr);
+  EXPECT_EQ(later.filter(1)->particles().size(),
+            static_cast<std::size_t>(TrackerOptions{}.object_particles));
   for (int k = 0; k < 30; ++k, ++frame) {
     SetBlobs(&later, {Person(c)});
     later.Step(StampNs(frame));
@@ -164,6 +170,8 @@ TEST(TrackerTest, OnlyStandingPeopleStartTracks) {
   ASSERT_EQ(later.tracks().size(), 1u);
   EXPECT_LT((later.tracks()[0].centre_W - c).norm(), 0.15);
   EXPECT_EQ(later.stats().promotions, 1u);
+  EXPECT_EQ(later.filter(later.tracks()[0].id)->particles().size(),
+            static_cast<std::size_t>(TrackerOptions{}.filter.num_particles));
   EXPECT_EQ(later.stats().births, 1u);
 }
 
