@@ -345,8 +345,9 @@ void Tracker::Births() {
       const double hi = (gate.centre_W.x() + half - g.origin().x()) / g.voxel_m() - 0.5;
       const int a = std::max(c.x(), static_cast<int>(std::ceil(std::clamp(lo, -1.0, 1.0 * nx))));
       const int b = std::min(x_last, static_cast<int>(std::floor(std::clamp(hi, -1.0, 1.0 * nx))));
-      for (int x = a; x <= b; ++x)
+      for (int x = a; x <= b; ++x) {
         marks_[first + static_cast<std::uint32_t>(x - c.x())] = kExplainedMark;
+      }
     }
     for (std::size_t j = k; j < end; ++j) {
       unexplained_total += marks_[unknown[j]] == kUnexplainedMark ? 1 : 0;
