@@ -5,7 +5,10 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <set>
+#include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -79,7 +82,7 @@ double JsonNumber(const std::string& json, const std::string& key) {
 TEST_F(TrackEvalTest, TracksTwoPeopleAndReportsPlausibleMetrics) {
   const auto r = Hullguard("track-eval --scene " + Path("tiny.yaml") +
                            " --frames 30 --depth 7 --publish-depth 6 --threads 2 --json --plot " +
-                           Path("plot.png"));
+                           Path("plot.png") + " --trace " + Path("trace.csv"));
   ASSERT_EQ(r.code, 0) << r.err << r.out;
   const std::string& j = r.out;
   EXPECT_EQ(JsonField(j, "scene"), "\"tiny_tracking\"");
@@ -107,6 +110,39 @@ TEST_F(TrackEvalTest, TracksTwoPeopleAndReportsPlausibleMetrics) {
   std::string head(8, '\0');
   png.read(head.data(), 8);
   EXPECT_EQ(head, std::string("\x89PNG\r\n\x1a\n", 8));
+  // The trace: a truth row per person and frame, matched to a track row of
+  // the same frame; the matched distances average to the MOTP.
+  std::ifstream csv(Path("trace.csv"));
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line, "frame,time_s,kind,id,name,x,y,z,half_x,half_y,half_z,matched_id,distance_m");
+  int truths = 0, matched = 0;
+  double distance_sum = 0.0;
+  std::set<std::string> tracks_seen;  // "frame/id" of each track row.
+  std::vector<std::string> matches_wanted;
+  while (std::getline(csv, line)) {
+    std::vector<std::string> cell;
+    std::stringstream row(line);
+    for (std::string c; std::getline(row, c, ',');) cell.push_back(c);
+    if (!line.empty() && line.back() == ',') cell.emplace_back();
+    ASSERT_EQ(cell.size(), 13u) << line;
+    if (cell[2] == "track") {
+      tracks_seen.insert(cell[0] + "/" + cell[3]);
+      continue;
+    }
+    ASSERT_EQ(cell[2], "truth") << line;
+    ++truths;
+    EXPECT_TRUE(cell[4] == "walker" || cell[4] == "croucher") << line;
+    if (cell[11].empty()) continue;
+    ++matched;
+    distance_sum += std::stod(cell[12]);
+    matches_wanted.push_back(cell[0] + "/" + cell[11]);
+  }
+  EXPECT_EQ(truths, JsonNumber(j, "objects"));
+  EXPECT_EQ(matched, JsonNumber(j, "matches"));
+  for (const std::string& m : matches_wanted) EXPECT_EQ(tracks_seen.count(m), 1u) << m;
+  ASSERT_GT(matched, 0);
+  EXPECT_NEAR(distance_sum / matched, JsonNumber(j, "motp_m"), 1e-3);
 }
 
 // As in the daemon, an update the deadline cut off before it was refined

@@ -45,6 +45,7 @@ struct TrackEvalFlags {
   int coarse_first_depth = 0;
   bool json = false;
   std::string plot;
+  std::string trace;
 };
 
 /// Time of the calling thread on its core (ms): the tracker's own work,
@@ -310,6 +311,34 @@ void WritePlot(const sim::Scene& scene, const std::vector<FrameRecord>& frames,
   if (!cv::imwrite(path, img)) throw common::ConfigError(path + ": cannot write the plot");
 }
 
+/// One frame of the --trace CSV: each person in the cell (truth: body-box
+/// centre, the matched track and its distance, empty when missed), then each
+/// scored track (centre and half-axes).
+void WriteTraceFrame(int frame, double t, const sim::Scene& scene,
+                     const std::vector<tracking::MotPoint>& objects,
+                     const std::vector<int>& object_person, const tracking::MotFrame& m,
+                     const tracking::Tracker& tracker, std::FILE* out) {
+  for (std::size_t k = 0; k < objects.size(); ++k) {
+    const Vector3d& p = objects[k].position_W;
+    std::fprintf(out, "%d,%.4f,truth,%u,%s,%.4f,%.4f,%.4f,,,,", frame, t, objects[k].id,
+                 scene.people[object_person[k]].name.c_str(), p.x(), p.y(), p.z());
+    const auto match = std::find_if(m.matches.begin(), m.matches.end(),
+                                    [&](const auto& x) { return x.object_id == objects[k].id; });
+    if (match != m.matches.end()) {
+      std::fprintf(out, "%u,%.4f\n", match->hypothesis_id, match->distance_m);
+    } else {
+      std::fputs(",\n", out);
+    }
+  }
+  for (const tracking::Track& tr : tracker.tracks()) {
+    if (!scene.bounds.Contains(tr.centre_W)) continue;  // Not scored.
+    const Vector3d& c = tr.centre_W;
+    const Vector3d& h = tr.half_axes_m;
+    std::fprintf(out, "%d,%.4f,track,%u,,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,,\n", frame, t, tr.id, c.x(),
+                 c.y(), c.z(), h.x(), h.y(), h.z());
+  }
+}
+
 int RunTrackEval(const TrackEvalFlags& f) {
   if (f.publish_depth > f.depth) {
     throw common::ConfigError("--publish-depth " + std::to_string(f.publish_depth) +
@@ -356,6 +385,13 @@ int RunTrackEval(const TrackEvalFlags& f) {
   std::vector<int> object_person;
   int max_tracks = 0;
   int aborted = 0, untracked = 0;
+  std::unique_ptr<std::FILE, int (*)(std::FILE*)> trace(nullptr, &std::fclose);
+  if (!f.trace.empty()) {
+    trace.reset(std::fopen(f.trace.c_str(), "w"));
+    if (!trace) throw common::ConfigError(f.trace + ": cannot write the trace");
+    std::fputs("frame,time_s,kind,id,name,x,y,z,half_x,half_y,half_z,matched_id,distance_m\n",
+               trace.get());
+  }
   for (int frame = 0; frame < frames; ++frame) {
     const double t = f.start_s + frame * dt;
     const FrameTimes times = engine.Step(t, {}, f.deadline_ms);
@@ -416,6 +452,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
     }
     max_tracks = std::max(max_tracks, static_cast<int>(hypotheses.size()));
     const tracking::MotFrame& m = mot.AddFrame(objects, hypotheses, distractors);
+    if (trace) WriteTraceFrame(frame, t, s, objects, object_person, m, tracker, trace.get());
     for (std::size_t k = 0; k < objects.size(); ++k) {
       const int person = object_person[k];
       const auto match = std::find_if(m.matches.begin(), m.matches.end(),
@@ -589,6 +626,9 @@ void RegisterTrackEval(CLI::App& app, int* exit_code) {
   cmd->add_flag("--json", flags->json, "Print one JSON object");
   cmd->add_option("--plot", flags->plot,
                   "Write a PNG: top view of truth and tracks over the run, heights over time");
+  cmd->add_option("--trace", flags->trace,
+                  "Write a CSV: per frame each person's true centre, matched track and distance, "
+                  "and each track's centre and half-axes");
   cmd->callback([flags, exit_code] { *exit_code = RunTrackEval(*flags); });
 }
 
