@@ -86,15 +86,23 @@ TEST(ParticleFilterTest, WeightsAreTheSharpenedNormalisedScores) {
   }
 }
 
+// Places the particles 25 cm off `blob`, with the wrong shape.
+void StartOffBlob(const Ellipsoid& blob, ParticleFilter* f) {
+  f->Reset({blob.centre_W + Vector3d(0.2, -0.15, 0.05), Vector3d(0.35, 0.35, 0.7)},
+           Vector3d::Zero(), 1);
+}
+
+void Steps(int n, const VoxelMap& map, ParticleFilter* f) {
+  for (int k = 0; k < n; ++k) f->Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+}
+
 TEST(ParticleFilterTest, ConvergesOntoABlob) {
   VoxelMap map = OpenCell();
   const Ellipsoid blob = Person({1.7, 2.3, 0.9});
   SetBlobs(&map, {blob});
   ParticleFilter f(ParticleFilterOptions{});
-  // Start 25 cm off, with the wrong shape.
-  f.Reset({blob.centre_W + Vector3d(0.2, -0.15, 0.05), Vector3d(0.35, 0.35, 0.7)}, Vector3d::Zero(),
-          1);
-  for (int k = 0; k < 90; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  StartOffBlob(blob, &f);
+  Steps(90, map, &f);
   const FilterEstimate& e = f.estimate();
   EXPECT_LT((e.ellipsoid.centre_W - blob.centre_W).norm(), 0.05)
       << e.ellipsoid.centre_W.transpose();
@@ -115,9 +123,8 @@ TEST(ParticleFilterTest, ParticleCountChangesKeepTheCloud) {
   const Ellipsoid blob = Person({1.7, 2.3, 0.9});
   SetBlobs(&map, {blob});
   ParticleFilter f(ParticleFilterOptions{});
-  f.Reset({blob.centre_W + Vector3d(0.2, -0.15, 0.05), Vector3d(0.35, 0.35, 0.7)}, Vector3d::Zero(),
-          1);
-  for (int k = 0; k < 30; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  StartOffBlob(blob, &f);
+  Steps(30, map, &f);
   auto mean = [&] {
     Vector3d m = Vector3d::Zero();
     for (const Ellipsoid& p : f.particles()) m += p.centre_W;
@@ -127,13 +134,13 @@ TEST(ParticleFilterTest, ParticleCountChangesKeepTheCloud) {
   f.SetParticleCount(100);
   ASSERT_EQ(f.particles().size(), 100u);
   EXPECT_LT((mean() - before).norm(), 0.03);
-  for (int k = 0; k < 30; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  Steps(30, map, &f);
   EXPECT_LT((f.estimate().ellipsoid.centre_W - blob.centre_W).norm(), 0.06);
   const Vector3d small = mean();
   f.SetParticleCount(ParticleFilterOptions{}.num_particles);
   ASSERT_EQ(f.particles().size(), static_cast<std::size_t>(ParticleFilterOptions{}.num_particles));
   EXPECT_LT((mean() - small).norm(), 1e-9);  // Each particle repeated three times.
-  for (int k = 0; k < 30; ++k) f.Step(kDt, map, LikelihoodWeights{}, CollisionWorld());
+  Steps(30, map, &f);
   EXPECT_LT((f.estimate().ellipsoid.centre_W - blob.centre_W).norm(), 0.05);
 }
 

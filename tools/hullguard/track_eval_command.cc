@@ -311,6 +311,14 @@ void WritePlot(const sim::Scene& scene, const std::vector<FrameRecord>& frames,
   if (!cv::imwrite(path, img)) throw common::ConfigError(path + ": cannot write the plot");
 }
 
+/// The match of ground-truth object `object_id` in frame `m`; null when missed.
+const tracking::MotMatch* MatchOf(const tracking::MotFrame& m, std::uint32_t object_id) {
+  const auto it =
+      std::find_if(m.matches.begin(), m.matches.end(),
+                   [&](const tracking::MotMatch& x) { return x.object_id == object_id; });
+  return it == m.matches.end() ? nullptr : &*it;
+}
+
 /// One frame of the --trace CSV: each person in the cell (truth: body-box
 /// centre, the matched track and its distance, empty when missed), then each
 /// scored track (centre and half-axes).
@@ -322,9 +330,7 @@ void WriteTraceFrame(int frame, double t, const sim::Scene& scene,
     const Vector3d& p = objects[k].position_W;
     std::fprintf(out, "%d,%.4f,truth,%u,%s,%.4f,%.4f,%.4f,,,,", frame, t, objects[k].id,
                  scene.people[object_person[k]].name.c_str(), p.x(), p.y(), p.z());
-    const auto match = std::find_if(m.matches.begin(), m.matches.end(),
-                                    [&](const auto& x) { return x.object_id == objects[k].id; });
-    if (match != m.matches.end()) {
+    if (const tracking::MotMatch* match = MatchOf(m, objects[k].id)) {
       std::fprintf(out, "%u,%.4f\n", match->hypothesis_id, match->distance_m);
     } else {
       std::fputs(",\n", out);
@@ -455,9 +461,8 @@ int RunTrackEval(const TrackEvalFlags& f) {
     if (trace) WriteTraceFrame(frame, t, s, objects, object_person, m, tracker, trace.get());
     for (std::size_t k = 0; k < objects.size(); ++k) {
       const int person = object_person[k];
-      const auto match = std::find_if(m.matches.begin(), m.matches.end(),
-                                      [&](const auto& x) { return x.object_id == objects[k].id; });
-      if (match == m.matches.end()) {
+      const tracking::MotMatch* match = MatchOf(m, objects[k].id);
+      if (match == nullptr) {
         ++people[person].misses;
         record.missed.push_back(person);
         continue;
