@@ -83,13 +83,14 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
   char head[256];
   std::snprintf(head, sizeof(head),
                 "cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms cycle %.1f ms "
-                "skew %.1f ms deadline misses %llu |",
+                "skew %.1f ms deadline misses %llu missed cycles %llu |",
                 static_cast<unsigned long long>(s.sequence), s.health.degraded ? "DEGRADED" : "ok",
                 s.complete ? "" : " (aborted)",
                 cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
                 cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occluded)),
                 s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
-                static_cast<unsigned long long>(s.health.deadline_misses));
+                static_cast<unsigned long long>(s.health.deadline_misses),
+                static_cast<unsigned long long>(s.health.missed_cycles));
   std::string line = head;
   if (tracking != nullptr) {
     // The last tracked cycle's, which may be a cycle or two behind.

@@ -219,7 +219,11 @@ void Pipeline::FusionLoop() {
     std::this_thread::sleep_until(next);
     next += period;
     const SteadyClock::time_point cycle_start = SteadyClock::now();
-    if (next < cycle_start) next = cycle_start + period;  // Fell behind: skip, never burst.
+    if (next < cycle_start) {
+      // Fell behind: skip the periods already past, never burst.
+      missed_cycles_ += static_cast<std::uint64_t>((cycle_start - next) / period) + 1;
+      next = cycle_start + period;
+    }
     const bool new_second = cycle_start - last_second >= std::chrono::seconds(1);
     const double elapsed_s = std::chrono::duration<double>(cycle_start - last_second).count();
     if (new_second) last_second = cycle_start;
@@ -310,8 +314,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
           if (tiles == 0) {
             c.quadtree.Build(c.current->mask.View(), 127);
           } else {
-            c.dilator.Apply(c.current->mask.View(), radius, &c.dilated);
-            c.quadtree.Build(c.dilated.View(), 127);
+            c.quadtree.BuildFromTiles(c.dilator.DilateTiles(c.current->mask.View(), radius));
           }
           if (c.fresh) {
             health.silhouette_ms =
@@ -344,6 +347,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
   health.octree_ms = stats.update_ms;
   health.deadline_misses = deadline_misses_;
   health.cycles = sequence_;
+  health.missed_cycles = missed_cycles_;
   return snapshot;
 }
 

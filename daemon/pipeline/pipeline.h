@@ -135,7 +135,6 @@ class Pipeline {
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
     silhouette::TileDilator dilator;
-    common::ImageU8 dilated;
     geometry::CameraModel pinhole;
     const Slot* current = nullptr;  // Newest frame taken; valid until the next take.
     bool fresh = false;             // `current` not built into the quadtree yet.
@@ -151,7 +150,6 @@ class Pipeline {
           timeout_ms(timeout),
           quadtree(model.width, model.height),
           dilator(model.width, model.height),
-          dilated(model.width, model.height),
           pinhole(model.Pinhole()) {}
   };
 
@@ -180,6 +178,7 @@ class Pipeline {
   std::vector<std::thread> threads_;
   std::uint64_t sequence_ = 0;
   std::uint64_t deadline_misses_ = 0;
+  std::uint64_t missed_cycles_ = 0;  // Fusion thread only.
 };
 
 }  // namespace hg::pipeline

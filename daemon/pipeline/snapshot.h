@@ -47,6 +47,10 @@ struct PipelineHealth {
   double cycle_ms = 0.0;       ///< Cycle start -> snapshot published.
   std::uint64_t deadline_misses = 0;  ///< Updates aborted by the deadline since start.
   std::uint64_t cycles = 0;
+  /// Periods of the fixed rate that passed without a cycle since start: a
+  /// cycle overran its period and the next start was skipped. 0 while the
+  /// rate holds.
+  std::uint64_t missed_cycles = 0;
 };
 
 /// Cells (x .. x + length - 1, y, z) of the published grid (2^depth cells

@@ -174,6 +174,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   st.cycle_ms = static_cast<float>(health.cycle_ms);
   st.deadline_misses = health.deadline_misses;
   st.cycles = health.cycles;
+  st.missed_cycles = health.missed_cycles;
 
   if (occupancy_writer_.Write(&occ) < 0) ++write_failures_;
   if (status_writer_.Write(&st) < 0) ++write_failures_;

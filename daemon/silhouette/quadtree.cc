@@ -75,9 +75,7 @@ void SilhouetteQuadtree::Build(const common::ImageViewU8& mask, std::uint8_t thr
   const __m128i thr = _mm_set1_epi8(static_cast<char>(threshold ^ 0x80));
   const int full_chunks = width_ / 16;
   for (int ty = 0; ty < tiles_h_; ++ty) {
-    std::uint64_t* row_words = words_.data() + static_cast<std::size_t>(ty) * tiles_w_;
     std::uint64_t* row_changed = changed_.data() + static_cast<std::size_t>(ty) * tiles_w_;
-    const std::uint64_t* row_valid = valid_.data() + static_cast<std::size_t>(ty) * tiles_w_;
     // The new words are assembled into changed_ first, then swapped with the old.
     std::memset(row_changed, 0, sizeof(std::uint64_t) * tiles_w_);
     const int rows = std::min(8, height_ - ty * 8);
@@ -95,17 +93,39 @@ void SilhouetteQuadtree::Build(const common::ImageViewU8& mask, std::uint8_t thr
         if (px[u] > threshold) row_changed[u >> 3] |= 1ULL << (shift + (u & 7));
       }
     }
-    std::uint8_t* cells = levels_[0].cells.data() + static_cast<std::size_t>(ty) * tiles_w_;
-    for (int tx = 0; tx < tiles_w_; ++tx) {
-      const std::uint64_t fresh = row_changed[tx];
-      const std::uint64_t diff = first ? row_valid[tx] : (fresh ^ row_words[tx]);
-      row_words[tx] = fresh;
-      row_changed[tx] = diff;
-      cells[tx] =
-          static_cast<std::uint8_t>(CoverOf(fresh, row_valid[tx]) | (diff != 0 ? kChangedBit : 0));
-    }
+    CommitTileRow(ty, first);
   }
   BuildCoarseLevels();
+}
+
+void SilhouetteQuadtree::BuildFromTiles(std::span<const std::uint8_t> tiles) {
+  HG_CHECK(tiles.size() == words_.size());
+  const bool first = version_ == 0;
+  ++version_;
+  for (int ty = 0; ty < tiles_h_; ++ty) {
+    const std::size_t row = static_cast<std::size_t>(ty) * tiles_w_;
+    for (int tx = 0; tx < tiles_w_; ++tx) {
+      changed_[row + tx] = tiles[row + tx] != 0 ? valid_[row + tx] : 0;
+    }
+    CommitTileRow(ty, first);
+  }
+  BuildCoarseLevels();
+}
+
+void SilhouetteQuadtree::CommitTileRow(int ty, bool first) {
+  const std::size_t row = static_cast<std::size_t>(ty) * tiles_w_;
+  std::uint64_t* row_words = words_.data() + row;
+  std::uint64_t* row_changed = changed_.data() + row;
+  const std::uint64_t* row_valid = valid_.data() + row;
+  std::uint8_t* cells = levels_[0].cells.data() + row;
+  for (int tx = 0; tx < tiles_w_; ++tx) {
+    const std::uint64_t fresh = row_changed[tx];
+    const std::uint64_t diff = first ? row_valid[tx] : (fresh ^ row_words[tx]);
+    row_words[tx] = fresh;
+    row_changed[tx] = diff;
+    cells[tx] =
+        static_cast<std::uint8_t>(CoverOf(fresh, row_valid[tx]) | (diff != 0 ? kChangedBit : 0));
+  }
 }
 
 void SilhouetteQuadtree::MarkAllChanged() {

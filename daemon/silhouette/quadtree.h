@@ -4,6 +4,7 @@
 /// foreground or both, and whether any pixel flipped since the previous mask.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "common/image.h"
@@ -32,6 +33,12 @@ class SilhouetteQuadtree {
   /// are relative to the previously built mask; the first build marks every
   /// pixel changed. Precondition: mask size equals the tree's size.
   void Build(const common::ImageViewU8& mask, std::uint8_t threshold);
+
+  /// Rebuilds from a map of 8x8-pixel tiles, row-major over the tile grid
+  /// ((width + 7) / 8 by (height + 7) / 8): a tile is wholly foreground when
+  /// its byte is non-zero, wholly background otherwise (a mask dilated at tile
+  /// granularity, TileDilator). Same changed flags as Build(); no allocation.
+  void BuildFromTiles(std::span<const std::uint8_t> tiles);
 
   /// Marks every element changed (for a consumer that missed a version).
   void MarkAllChanged();
@@ -64,6 +71,9 @@ class SilhouetteQuadtree {
   template <bool kChanged>
   [[nodiscard]] std::uint8_t Descend(const geometry::PixelRect& rect, std::uint8_t goal) const;
   void BuildCoarseLevels();
+  // Turns row ty's new words (assembled in changed_) into words, changed bits
+  // and tile covers.
+  void CommitTileRow(int ty, bool first);
 
   int width_;
   int height_;

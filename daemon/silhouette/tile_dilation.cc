@@ -5,6 +5,8 @@
 #include <cstring>
 #include <numbers>
 
+#include "common/check.h"
+
 namespace hg::silhouette {
 
 TileDilator::TileDilator(int width, int height)
@@ -26,6 +28,21 @@ void TileDilator::Apply(const common::ImageViewU8& mask, int radius_px, common::
     }
     return;
   }
+  const std::span<const std::uint8_t> tiles = DilateTiles(mask, radius_px);
+  for (int v = 0; v < height_; ++v) {
+    const std::uint8_t* tile_row = tiles.data() + static_cast<std::size_t>(v / kTile) * tiles_x_;
+    std::uint8_t* o = out->pixels.data() + static_cast<std::size_t>(v) * width_;
+    for (int tx = 0; tx < tiles_x_; ++tx) {
+      const int u0 = tx * kTile;
+      std::memset(o + u0, tile_row[tx] != 0 ? 255 : 0,
+                  static_cast<std::size_t>(std::min(kTile, width_ - u0)));
+    }
+  }
+}
+
+std::span<const std::uint8_t> TileDilator::DilateTiles(const common::ImageViewU8& mask,
+                                                       int radius_px) {
+  HG_CHECK(radius_px > 0 && mask.width == width_ && mask.height == height_);
   // Tile map: a tile is foreground when any of its pixels is (> 127, i.e. its
   // top bit is set: eight pixels are tested with one word).
   std::fill(tiles_.begin(), tiles_.end(), 0);
@@ -68,15 +85,7 @@ void TileDilator::Apply(const common::ImageViewU8& mask, int radius_px, common::
           static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0);
     }
   }
-  for (int v = 0; v < height_; ++v) {
-    const std::uint8_t* tile_row = tiles_.data() + static_cast<std::size_t>(v / kTile) * tiles_x_;
-    std::uint8_t* o = out->pixels.data() + static_cast<std::size_t>(v) * width_;
-    for (int tx = 0; tx < tiles_x_; ++tx) {
-      const int u0 = tx * kTile;
-      std::memset(o + u0, tile_row[tx] != 0 ? 255 : 0,
-                  static_cast<std::size_t>(std::min(kTile, width_ - u0)));
-    }
-  }
+  return tiles_;
 }
 
 int CoveringRadiusPx(const geometry::CameraModel& pinhole, double distance_m, double min_depth_m) {

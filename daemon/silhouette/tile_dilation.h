@@ -3,6 +3,7 @@
 /// Conservative, cheap dilation of silhouette masks at 8x8-tile granularity.
 
 #include <cstdint>
+#include <span>
 #include <vector>
 
 #include "common/image.h"
@@ -28,6 +29,13 @@ class TileDilator {
   /// Writes the dilated mask (255 foreground, 0 background; input foreground
   /// iff > 127) to *out. radius_px <= 0 copies the mask as it is.
   void Apply(const common::ImageViewU8& mask, int radius_px, common::ImageU8* out);
+
+  /// The same dilation as a tile map, without writing pixels: one byte per
+  /// tile, row-major, (width + 7) / 8 by (height + 7) / 8, non-zero where the
+  /// dilated mask is foreground (SilhouetteQuadtree::BuildFromTiles() reads
+  /// it). Precondition: radius_px > 0. Valid until the next call.
+  [[nodiscard]] std::span<const std::uint8_t> DilateTiles(const common::ImageViewU8& mask,
+                                                          int radius_px);
 
  private:
   int width_, height_, tiles_x_, tiles_y_;

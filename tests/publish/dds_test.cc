@@ -65,6 +65,7 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   s.health.octree_ms = 11.75;
   s.health.cycle_ms = 18.25;
   s.health.deadline_misses = 5;
+  s.health.missed_cycles = 3;
   s.health.cycles = 1234;
   return s;
 }
@@ -189,6 +190,7 @@ void ExpectSameContent(const pipeline::OccupancySnapshot& sent, const ReceivedOc
   EXPECT_EQ(st.header.octree_ms, static_cast<float>(h.octree_ms));
   EXPECT_EQ(st.header.cycle_ms, static_cast<float>(h.cycle_ms));
   EXPECT_EQ(st.header.deadline_misses, h.deadline_misses);
+  EXPECT_EQ(st.header.missed_cycles, h.missed_cycles);
   EXPECT_EQ(st.header.cycles, h.cycles);
   ASSERT_EQ(st.cameras.size(), h.cameras.size());
   for (std::size_t i = 0; i < h.cameras.size(); ++i) {

@@ -1,5 +1,7 @@
 #include "silhouette/tile_dilation.h"
 
+#include "silhouette/quadtree.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -65,6 +67,33 @@ TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
           }
         }
       }
+    }
+  }
+}
+
+// The pipeline builds the quadtree of a dilated mask from the tile map; it
+// must answer every query as the quadtree built from the dilated pixels,
+// changed flags included, frame after frame.
+TEST(TileDilator, TileMapBuildsTheSameQuadtreeAsThePixels) {
+  std::mt19937_64 rng(11);
+  const int w = 203, h = 117;  // Partial tiles on the right and at the bottom.
+  TileDilator dilator(w, h);
+  SilhouetteQuadtree from_pixels(w, h), from_tiles(w, h);
+  common::ImageU8 dilated;
+  std::uniform_int_distribution<int> u(0, w - 1), v(0, h - 1);
+  for (int frame = 0; frame < 8; ++frame) {
+    const common::ImageU8 mask = RandomBlobs(w, h, 1 + frame % 3, rng);
+    const int radius = 1 + 7 * frame;
+    dilator.Apply(mask.View(), radius, &dilated);
+    from_pixels.Build(dilated.View(), 127);
+    from_tiles.BuildFromTiles(dilator.DilateTiles(mask.View(), radius));
+    for (int q = 0; q < 3000; ++q) {
+      int u0 = u(rng), u1 = u(rng), v0 = v(rng), v1 = v(rng);
+      if (u0 > u1) std::swap(u0, u1);
+      if (v0 > v1) std::swap(v0, v1);
+      const geometry::PixelRect rect{u0, v0, u1, v1};
+      ASSERT_EQ(from_tiles.Query(rect), from_pixels.Query(rect)) << "frame " << frame;
+      ASSERT_EQ(from_tiles.AnyChanged(rect), from_pixels.AnyChanged(rect)) << "frame " << frame;
     }
   }
 }

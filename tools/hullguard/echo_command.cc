@@ -257,13 +257,17 @@ void PrintStatus(const hullguard_Status& s, bool json) {
   if (json) {
     std::printf(
         "{\"topic\": \"status\", \"sequence\": %llu, \"degraded\": %s, \"deadline_misses\": %llu, "
-        "\"cycle_ms\": %.3f, \"cameras\": [%s]}\n",
+        "\"missed_cycles\": %llu, \"cycle_ms\": %.3f, \"cameras\": [%s]}\n",
         static_cast<unsigned long long>(s.sequence), s.degraded ? "true" : "false",
-        static_cast<unsigned long long>(s.deadline_misses), s.cycle_ms, cameras.c_str());
+        static_cast<unsigned long long>(s.deadline_misses),
+        static_cast<unsigned long long>(s.missed_cycles), s.cycle_ms, cameras.c_str());
   } else {
-    std::printf("status seq=%llu degraded=%d deadline_misses=%llu cycle_ms=%.2f cameras=[%s]\n",
-                static_cast<unsigned long long>(s.sequence), s.degraded ? 1 : 0,
-                static_cast<unsigned long long>(s.deadline_misses), s.cycle_ms, cameras.c_str());
+    std::printf(
+        "status seq=%llu degraded=%d deadline_misses=%llu missed_cycles=%llu cycle_ms=%.2f "
+        "cameras=[%s]\n",
+        static_cast<unsigned long long>(s.sequence), s.degraded ? 1 : 0,
+        static_cast<unsigned long long>(s.deadline_misses),
+        static_cast<unsigned long long>(s.missed_cycles), s.cycle_ms, cameras.c_str());
   }
 }
 

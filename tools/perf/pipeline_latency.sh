@@ -3,7 +3,7 @@
 # publishes over DDS on loopback (in a private network namespace when one can
 # be made), `hullguard echo` subscribes, and the latency from each sample's
 # capture stamp to its arrival at the subscriber is summarised, with the
-# daemon's cycle count and deadline misses (does the rate hold?).
+# daemon's cycle count, deadline misses and missed cycles (does the rate hold?).
 #   tools/perf/pipeline_latency.sh [CONFIG] [SECONDS] [BUILD_DIR]
 # Defaults: config/paper_cell.yaml, 20 s, build. Prints one JSON object.
 set -eu
@@ -31,8 +31,9 @@ run
 last=$(grep 'hullguardd: cycle' "$out/daemon.log" | tail -1)
 cycles=$(echo "$last" | sed -n 's/.*cycle \([0-9]*\) .*/\1/p')
 misses=$(echo "$last" | sed -n 's/.*deadline misses \([0-9]*\) .*/\1/p')
+missed=$(echo "$last" | sed -n 's/.*missed cycles \([0-9]*\) .*/\1/p')
 latency=$(grep '"summary": "latency"' "$out/echo.jsonl" | tail -1)
 samples=$(grep -c '"topic": "status"' "$out/echo.jsonl" || true)
-printf '{"config": "%s", "seconds": %s, "cycles": %s, "deadline_misses": %s, "status_samples": %s, "latency": %s, "last_health": "%s"}\n' \
-  "$(basename "$config")" "$seconds" "${cycles:-0}" "${misses:-0}" "$samples" "${latency:-null}" \
+printf '{"config": "%s", "seconds": %s, "cycles": %s, "deadline_misses": %s, "missed_cycles": %s, "status_samples": %s, "latency": %s, "last_health": "%s"}\n' \
+  "$(basename "$config")" "$seconds" "${cycles:-0}" "${misses:-0}" "${missed:-0}" "$samples" "${latency:-null}" \
   "$(echo "$last" | sed 's/"/\\"/g')"
