@@ -454,6 +454,13 @@ const Field<TrackingConfig> kTrackingFields[] = {
                 "head's cross-section at this height above the floor; otherwise it is an object "
                 "track (a parcel), followed but not published. 0: every track is a person's.",
      .limits = {0, kInf}},
+    {.key = "birth_max_skew_ms",
+     .member = &TrackingConfig::birth_max_skew_ms,
+     .meaning = "Tracks start only from a whole cycle: every camera ok, the update refined to "
+                "the tracking voxel, and frames captured at most this far apart (older frames "
+                "are dilated for the motion meanwhile, which leaves person-sized blobs where "
+                "nobody is). Tracks follow their people through every cycle.",
+     .limits = {0, kInf}},
     {.key = "death_timeout_s",
      .member = &TrackingConfig::death_timeout_s,
      .meaning = "A visible track dies after this long without occupied voxels in its ellipsoid.",
@@ -859,6 +866,7 @@ constexpr std::pair<const char*, const char*> kTrackerOptionKeys[] = {
     {"filter.collision_radius_m", "collision_radius_m"},
     {"birth_min_volume_m3", "birth_min_volume_m3"},
     {"birth_min_height_m", "birth_min_height_m"},
+    {"birth_max_skew_ms", "birth_max_skew_ms"},
     {"death_timeout_s", "death_timeout_s"},
     {"occluded_death_timeout_s", "occluded_death_timeout_s"},
     {"reacquire_radius_m", "reacquire_radius_m"},

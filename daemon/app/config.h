@@ -169,6 +169,7 @@ struct TrackingConfig {
   double collision_radius_m = 0.2;   ///< Capsule swept by a particle's move.
   double birth_min_volume_m3 = 0.06;
   double birth_min_height_m = 1.0;
+  double birth_max_skew_ms = 20.0;
   double death_timeout_s = 1.0;
   double occluded_death_timeout_s = 30.0;
   double reacquire_radius_m = 0.5;

@@ -49,6 +49,7 @@ tracking::TrackerOptions MakeTrackerOptions(const TrackingConfig& config, double
   o.filter.collision_radius_m = config.collision_radius_m;
   o.birth_min_volume_m3 = config.birth_min_volume_m3;
   o.birth_min_height_m = config.birth_min_height_m;
+  o.birth_max_skew_ms = config.birth_max_skew_ms;
   o.death_timeout_s = config.death_timeout_s;
   o.occluded_death_timeout_s = config.occluded_death_timeout_s;
   o.reacquire_radius_m = config.reacquire_radius_m;

@@ -105,4 +105,22 @@ struct OccupancySnapshot {
   return s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= 2.0 * voxel_m);
 }
 
+/// Whether a snapshot holds the whole evidence a new track needs: every
+/// camera delivered (a camera that is out, or lags too far, sees nothing, so
+/// the others' silhouette cones stay occupied where it would have cut them:
+/// person-sized blobs with nobody in them), and the update refined the cell
+/// to cells of at most one tracking voxel everywhere, from frames captured
+/// within max_skew_ms of each other (older frames are dilated by the
+/// distance a person may have moved meanwhile, which fattens every cone the
+/// same way). Tracks follow their
+/// people through other snapshots (RefinedForTracking); births wait.
+[[nodiscard]] inline bool WholeForBirths(const OccupancySnapshot& s, double voxel_m,
+                                         double max_skew_ms) {
+  if (s.health.skew_ms > max_skew_ms) return false;
+  for (const CameraHealth& c : s.health.cameras) {
+    if (c.state != CameraState::kOk) return false;
+  }
+  return s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m);
+}
+
 }  // namespace hg::pipeline

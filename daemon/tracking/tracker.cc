@@ -127,6 +127,8 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
   Require(Finite(o.birth_max_floating_m), "birth_max_floating_m", "must be finite", &p);
   Require(o.birth_min_height_m >= 0.0 && Finite(o.birth_min_height_m), "birth_min_height_m",
           "must be >= 0", &p);
+  Require(o.birth_max_skew_ms >= 0.0 && Finite(o.birth_max_skew_ms), "birth_max_skew_ms",
+          "must be >= 0", &p);
   Require(Finite(o.promote_min_top_m), "promote_min_top_m", "must be finite", &p);
   Require(Finite(o.explain_margin_m), "explain_margin_m", "must be finite", &p);
   Require(o.birth_min_views >= 0 && o.birth_min_views <= kMaxViewCameras, "birth_min_views",
@@ -224,6 +226,8 @@ void Tracker::Init() {
 
 void Tracker::Update(const pipeline::OccupancySnapshot& snapshot) {
   map_.SetUnknownFromSnapshot(snapshot);
+  births_allowed_ =
+      pipeline::WholeForBirths(snapshot, options_.voxel_m, options_.birth_max_skew_ms);
   Step(snapshot.stamp_ns);
 }
 
@@ -283,7 +287,7 @@ void Tracker::Step(std::int64_t stamp_ns) {
   }
 
   // 4. Births (which may re-acquire a dying track), then the deaths.
-  Births();
+  if (births_allowed_) Births();
   for (Slot& s : slots_) {
     if (!s.dying) continue;
     s.dying = false;

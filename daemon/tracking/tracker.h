@@ -69,6 +69,14 @@ struct TrackerOptions {
   /// crouches or crawls once tracked stays a person. 0: every track is a
   /// person's.
   double birth_min_height_m = 1.0;
+  /// Births wait for a whole snapshot (pipeline::WholeForBirths): every camera
+  /// ok, the update refined to the tracking voxel, and frames captured within
+  /// this many milliseconds of each other. A lagging camera's mask is dilated
+  /// by the distance a person may have moved meanwhile; at start-up and under
+  /// load those fattened cones leave person-sized occupancy at obstacle edges
+  /// and between people before any track could explain it. Tracks follow
+  /// their people through every trackable snapshot.
+  double birth_max_skew_ms = 20.0;
   /// An object track becomes a person's when its estimate ellipsoid's top
   /// reaches this height above the grid's bottom (m): someone who was
   /// crouching when tracking started stands up.
@@ -257,6 +265,7 @@ class Tracker {
   void Init();
   void Assess(Slot* slot, double dt_s);
   void Births();
+  bool births_allowed_ = true;  // This cycle's snapshot may start tracks.
   /// A component with `unexplained` voxels outside every gate (sum and sum of
   /// squares of their centres): re-acquired by a lost track, or a new track.
   /// `tall`: the evidence reaches birth_min_height_m (a new track is a

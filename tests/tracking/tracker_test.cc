@@ -420,6 +420,82 @@ TEST(TrackerTest, OnAndUnderATableKeepTwoTracks) {
 
 // The daemon's path: static states from cameras and obstacles, UNKNOWN from
 // the snapshot's occupied runs.
+// The occupied cells of a blob on a 128^3 grid over a 4 m cube, as runs along x.
+std::vector<pipeline::GridRun> BlobRuns(const Ellipsoid& blob) {
+  std::vector<pipeline::GridRun> runs;
+  const double cell = 4.0 / 128;
+  for (int z = 0; z < 128; ++z) {
+    for (int y = 0; y < 128; ++y) {
+      int run_start = -1;
+      for (int x = 0; x <= 128; ++x) {
+        const bool in = x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell,
+                                                          (z + 0.5) * cell));
+        if (in && run_start < 0) run_start = x;
+        if (!in && run_start >= 0) {
+          runs.push_back({static_cast<std::uint16_t>(run_start), static_cast<std::uint16_t>(y),
+                          static_cast<std::uint16_t>(z),
+                          static_cast<std::uint16_t>(x - run_start)});
+          run_start = -1;
+        }
+      }
+    }
+  }
+  return runs;
+}
+
+// Births wait for a whole snapshot: a person-sized blob in a cycle with a
+// stale camera, with frames captured too far apart, or from an update
+// aborted above the tracking voxel starts nothing; the same blob in a whole
+// cycle starts a track, which then follows its person through such cycles.
+TEST(TrackerTest, BirthsWaitForAWholeCycle) {
+  Tracker tracker = OpenCellTracker();
+  pipeline::OccupancySnapshot snap;
+  snap.bounds = {Vector3d::Zero(), Vector3d(4, 4, 4)};
+  snap.depth = 7;
+  snap.health.cameras.resize(2);
+  for (pipeline::CameraHealth& c : snap.health.cameras) c.state = pipeline::CameraState::kOk;
+  const Vector3d velocity(0.0, 0.8, 0.0);
+  int frame = 0;
+  auto step = [&](auto&& spoil) {
+    const Vector3d c = Vector3d(1.5, 1.0, 0.9) + velocity * (frame * kDt);
+    snap.occupied = BlobRuns(Person(c));
+    snap.complete = true;
+    snap.refined_cell_m = 4.0 / 128;
+    snap.health.skew_ms = 0.0;
+    snap.health.cameras[1].state = pipeline::CameraState::kOk;
+    spoil();
+    snap.stamp_ns = 1'000'000'000 + StampNs(frame++);
+    tracker.Update(snap);
+    return c;
+  };
+  for (int k = 0; k < 10; ++k) {
+    step([&] {
+      switch (k % 3) {
+        case 0:
+          snap.health.cameras[1].state = pipeline::CameraState::kStale;
+          break;
+        case 1:
+          snap.health.skew_ms = 33.0;
+          break;
+        default:  // Refined to 6.25 cm cells, enough to track on but not for births.
+          snap.complete = false;
+          snap.refined_cell_m = 4.0 / 64;
+          break;
+      }
+    });
+    ASSERT_TRUE(tracker.tracks().empty()) << "cycle " << k;
+  }
+  step([] {});
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  Vector3d c;
+  for (int k = 0; k < 20; ++k) {
+    c = step([&] { snap.health.skew_ms = 33.0; });
+    ASSERT_EQ(tracker.tracks().size(), 1u) << "cycle " << k;
+  }
+  EXPECT_LT((tracker.tracks()[0].centre_W - c).norm(), 0.1);
+  EXPECT_EQ(tracker.stats().births, 1u);
+}
+
 TEST(TrackerTest, TracksFromSnapshots) {
   StaticScene scene;
   scene.cameras.push_back(scene::LookAtCamera({2, 2.01, 3.5}, {2, 2, 0}, 640, 480, 300));
@@ -436,29 +512,11 @@ TEST(TrackerTest, TracksFromSnapshots) {
   pipeline::OccupancySnapshot snap;
   snap.bounds = {Vector3d::Zero(), Vector3d(4, 4, 4)};
   snap.depth = 7;
-  const double cell = 4.0 / 128;
   const Vector3d velocity(0.0, 0.8, 0.0);
   Vector3d c;
   for (int frame = 0; frame < 45; ++frame) {
     c = Vector3d(1.5, 1.0, 0.9) + velocity * (frame * kDt);
-    const Ellipsoid blob = Person(c);
-    snap.occupied.clear();
-    for (int z = 0; z < 128; ++z) {
-      for (int y = 0; y < 128; ++y) {
-        int run_start = -1;
-        for (int x = 0; x <= 128; ++x) {
-          const bool in = x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell,
-                                                            (z + 0.5) * cell));
-          if (in && run_start < 0) run_start = x;
-          if (!in && run_start >= 0) {
-            snap.occupied.push_back({static_cast<std::uint16_t>(run_start),
-                                     static_cast<std::uint16_t>(y), static_cast<std::uint16_t>(z),
-                                     static_cast<std::uint16_t>(x - run_start)});
-            run_start = -1;
-          }
-        }
-      }
-    }
+    snap.occupied = BlobRuns(Person(c));
     snap.stamp_ns = 1'000'000'000 + StampNs(frame);
     tracker.Update(snap);
   }
