@@ -17,15 +17,23 @@ namespace hg::silhouette {
 /// (the camera cannot certify what it does not see).
 ///
 /// Built once per camera (not cheap); Apply() does not allocate when `out` already
-/// has the right size. Thread-compatible: Apply() is const and may run concurrently
-/// on different outputs.
+/// has the right size. Thread-compatible: Apply() uses scratch of its own, so
+/// one undistorter serves one thread at a time (the pipeline has one per camera).
 class ConservativeUndistorter {
  public:
   explicit ConservativeUndistorter(const geometry::CameraModel& camera);
 
   /// `in` is the distorted grey mask (foreground iff value > threshold); `out`
   /// receives 255 for foreground and 0 for background.
-  void Apply(const common::ImageViewU8& in, std::uint8_t threshold, common::ImageU8* out) const;
+  /// Whole 8x8 output tiles whose possible source pixels all lie in pure
+  /// (all background or all foreground) source tiles are written at once; the
+  /// rest pixel by pixel. The result equals ApplyPerPixel() bit for bit.
+  void Apply(const common::ImageViewU8& in, std::uint8_t threshold, common::ImageU8* out);
+
+  /// The same map, every output pixel on its own: the reference Apply() must
+  /// reproduce (tests). Thread-safe.
+  void ApplyPerPixel(const common::ImageViewU8& in, std::uint8_t threshold,
+                     common::ImageU8* out) const;
 
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
@@ -37,7 +45,16 @@ class ConservativeUndistorter {
   static constexpr std::uint16_t kOutside = 0xFFFF;  // u0 == kOutside: region leaves the image.
   int width_ = 0;
   int height_ = 0;
+  static constexpr int kTile = 8;
+  void BuildTileRects();
+
   std::vector<SourceRect> rects_;  // One per output pixel.
+  int tiles_w_ = 0;
+  int tiles_h_ = 0;
+  // Per 8x8 output tile: the source tiles its pixels' regions touch
+  // (inclusive, in tile units), or kOutside when one of them leaves the image.
+  std::vector<SourceRect> tile_rects_;
+  std::vector<std::uint8_t> source_cover_;  // Apply() scratch: Cover bits per source tile.
 };
 
 }  // namespace hg::silhouette

@@ -100,7 +100,7 @@ TEST(OctreeDistortionTest, DistortedCamerasStayConservative) {
       cam.distortion = {-0.3 + 0.4 * u01(rng), 0.05 * (u01(rng) - 0.5), 0.002 * (u01(rng) - 0.5),
                         0.002 * (u01(rng) - 0.5), 0.01 * (u01(rng) - 0.5)};
       const common::ImageU8 seen = scene::RenderExactDistortedMask(cam, scene.objects);
-      const silhouette::ConservativeUndistorter undistort(cam);
+      silhouette::ConservativeUndistorter undistort(cam);
       common::ImageU8 straight(cam.width, cam.height);
       undistort.Apply(seen.View(), 127, &straight);
       pinholes.push_back(cam.Pinhole());

@@ -46,7 +46,7 @@ long long CountForeground(const ImageU8& img) {
 TEST(ConservativeUndistorterTest, ZeroDistortionIsExactIdentity) {
   const int w = 97;
   const int h = 61;
-  const ConservativeUndistorter undistorter(MakeCamera(w, h, 80, 80, 48, 30, {0, 0, 0, 0, 0}));
+  ConservativeUndistorter undistorter(MakeCamera(w, h, 80, 80, 48, 30, {0, 0, 0, 0, 0}));
   EXPECT_EQ(undistorter.width(), w);
   EXPECT_EQ(undistorter.height(), h);
   // A padded source (stride > width) with random grey values.
@@ -88,7 +88,7 @@ TEST(ConservativeUndistorterTest, EveryObjectPointStaysForeground) {
         w, h, fx, fx * uniform(0.95, 1.05), w / 2.0 + uniform(-10, 10), h / 2.0 + uniform(-10, 10),
         {uniform(-0.3, 0.1), uniform(-0.05, 0.05), uniform(-0.002, 0.002), uniform(-0.002, 0.002),
          uniform(-0.01, 0.01)});
-    const ConservativeUndistorter undistorter(cam);
+    ConservativeUndistorter undistorter(cam);
 
     // Object points in ideal pinhole pixel coordinates, grouped into small blobs,
     // some of them exactly on or just beside pixel boundaries.
@@ -153,7 +153,7 @@ TEST(ConservativeUndistorterTest, BarrelDistortionDilatesLittle) {
   const int w = 640;
   const int h = 480;
   const CameraModel cam = MakeCamera(w, h, 500, 500, 319.5, 239.5, {-0.1, 0, 0, 0, 0});
-  const ConservativeUndistorter undistorter(cam);
+  ConservativeUndistorter undistorter(cam);
 
   // Barrel distortion pulls everything inwards: no pixel leaves the source.
   ImageU8 out;
@@ -215,8 +215,7 @@ TEST(ConservativeUndistorterTest, PixelsThatLeaveTheSourceAreForeground) {
   // Pincushion distortion pushes the corners out of the source image.
   const int w = 320;
   const int h = 240;
-  const ConservativeUndistorter undistorter(
-      MakeCamera(w, h, 250, 250, 159.5, 119.5, {0.1, 0, 0, 0, 0}));
+  ConservativeUndistorter undistorter(MakeCamera(w, h, 250, 250, 159.5, 119.5, {0.1, 0, 0, 0, 0}));
   ImageU8 out;
   undistorter.Apply(ImageU8(w, h, 0).View(), 0, &out);
   EXPECT_EQ(out.At(0, 0), 255);
@@ -232,8 +231,7 @@ TEST(ConservativeUndistorterTest, FoldedModelIsForeground) {
   // no real lens, so those pixels must not be certified.
   const int w = 320;
   const int h = 240;
-  const ConservativeUndistorter undistorter(
-      MakeCamera(w, h, 200, 200, 159.5, 119.5, {-1.0, 0, 0, 0, 0}));
+  ConservativeUndistorter undistorter(MakeCamera(w, h, 200, 200, 159.5, 119.5, {-1.0, 0, 0, 0, 0}));
   ImageU8 out;
   undistorter.Apply(ImageU8(w, h, 0).View(), 0, &out);
   EXPECT_EQ(out.At(0, 0), 255);
@@ -246,7 +244,7 @@ TEST(ConservativeUndistorterTest, FoldedModelIsForeground) {
 TEST(ConservativeUndistorterTest, ReusesOutputOfTheRightSize) {
   const int w = 64;
   const int h = 48;
-  const ConservativeUndistorter undistorter(MakeCamera(w, h, 60, 60, 32, 24, {-0.2, 0, 0, 0, 0}));
+  ConservativeUndistorter undistorter(MakeCamera(w, h, 60, 60, 32, 24, {-0.2, 0, 0, 0, 0}));
   ImageU8 out(w, h, 77);
   const std::uint8_t* before = out.pixels.data();
   undistorter.Apply(ImageU8(w, h, 0).View(), 0, &out);
@@ -258,6 +256,64 @@ TEST(ConservativeUndistorterTest, ReusesOutputOfTheRightSize) {
   EXPECT_EQ(wrong.width, w);
   EXPECT_EQ(wrong.height, h);
   EXPECT_EQ(CountForeground(wrong), static_cast<long long>(w) * h);
+}
+
+// Apply() writes pure tiles at once; it must equal the per-pixel map bit for
+// bit: random lenses (strong barrel ones whose corners leave the source image
+// or fold), sizes that are not multiples of the tile, blobs and grey levels
+// around the threshold, and a stride wider than the image.
+TEST(ConservativeUndistorterTest, TilesEqualThePerPixelMap) {
+  std::mt19937_64 rng(0x711e5);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
+  long long pure_tiles = 0;
+  for (int trial = 0; trial < 12; ++trial) {
+    const int w = 150 + trial * 7, h = 101 + trial * 3;
+    const double fx = uniform(90, 200);
+    ConservativeUndistorter undistorter(MakeCamera(
+        w, h, fx, fx * uniform(0.95, 1.05), w / 2.0 + uniform(-8, 8), h / 2.0 + uniform(-8, 8),
+        {uniform(-0.45, 0.15), uniform(-0.05, 0.05), uniform(-0.003, 0.003), uniform(-0.003, 0.003),
+         uniform(-0.02, 0.02)}));
+    const int stride = w + 13;
+    std::vector<std::uint8_t> pixels(static_cast<std::size_t>(stride) * h, 0);
+    for (int blob = 0; blob < 6; ++blob) {
+      const double cu = uniform(0, w), cv = uniform(0, h), r = uniform(2, 25);
+      for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+          if (std::hypot(u - cu, v - cv) < r)
+            pixels[static_cast<std::size_t>(v) * stride + u] = 200;
+        }
+      }
+    }
+    for (int k = 0; k < 300; ++k) {  // Scattered grey pixels on both sides of the threshold.
+      pixels[static_cast<std::size_t>(rng() % h) * stride + rng() % w] =
+          static_cast<std::uint8_t>(120 + rng() % 16);
+    }
+    const common::ImageViewU8 in{pixels.data(), w, h, stride};
+    ImageU8 tiled, reference;
+    for (const std::uint8_t threshold : {std::uint8_t{0}, std::uint8_t{254}, std::uint8_t{127}}) {
+      undistorter.Apply(in, threshold, &tiled);
+      undistorter.ApplyPerPixel(in, threshold, &reference);
+      ASSERT_EQ(tiled.pixels, reference.pixels)
+          << "trial " << trial << " threshold " << static_cast<int>(threshold);
+    }
+    // Not vacuous (threshold 127): most tiles take the fast path, some do not.
+    long long mixed = 0, tiles = 0;
+    for (int ty = 0; ty < (h + 7) / 8; ++ty) {
+      for (int tx = 0; tx < (w + 7) / 8; ++tx, ++tiles) {
+        bool fg = false, bg = false;
+        for (int v = 8 * ty; v < std::min(h, 8 * ty + 8); ++v) {
+          for (int u = 8 * tx; u < std::min(w, 8 * tx + 8); ++u) {
+            (reference.At(u, v) != 0 ? fg : bg) = true;
+          }
+        }
+        mixed += fg && bg;
+      }
+    }
+    EXPECT_GT(mixed, 0) << "trial " << trial;
+    pure_tiles += tiles - mixed;
+  }
+  EXPECT_GT(pure_tiles, 0);
 }
 
 }  // namespace

@@ -29,7 +29,7 @@ CarveResult Carve(const CarveJob& job) {
     const geometry::CameraModel& cam = job.cameras[c];
     pinholes.push_back(cam.Pinhole());
     if (cam.HasDistortion()) {
-      const silhouette::ConservativeUndistorter undistort(cam);
+      silhouette::ConservativeUndistorter undistort(cam);
       undistort.Apply(job.masks[c].View(), job.threshold, &undistorted[c]);
     }
   }
