@@ -1,8 +1,13 @@
 #include "geometry/camera.h"
 
+
+#include "geometry/footprint.h"
+
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
@@ -22,6 +27,28 @@ CameraModel MakeCamera() {
   c.R_CW << 0, -1, 0, 1, 0, 0, 0, 0, 1;
   c.t_CW = Eigen::Vector3d(0.1, -0.2, 2.0);
   return c;
+}
+
+// PixelOf is the pixel u with u - 0.5 <= x < u + 0.5, clamped far outside any
+// image: at pixel edges, just beside them, negative coordinates, large magnitudes.
+TEST(PixelOfTest, IsTheFloorOfTheShiftedCoordinate) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> wide(-5000.0, 5000.0);
+  auto expected = [](double x) {
+    if (x + 0.5 <= -1e9) return -1'000'000'000;
+    if (x + 0.5 >= 1e9) return 1'000'000'000;
+    return static_cast<int>(std::floor(x + 0.5));
+  };
+  std::vector<double> xs = {0.0, -0.0, 0.5, -0.5, 1.5, -1.5, 2e9, -2e9, 1e9, -1e9 - 0.5};
+  for (int k = -50; k <= 50; ++k) {
+    const double edge = k + 0.5;
+    xs.push_back(edge);
+    xs.push_back(std::nextafter(edge, -1e300));
+    xs.push_back(std::nextafter(edge, 1e300));
+    xs.push_back(k);
+  }
+  for (int k = 0; k < 20000; ++k) xs.push_back(wide(rng));
+  for (const double x : xs) EXPECT_EQ(PixelOf(x), expected(x)) << x;
 }
 
 TEST(CameraModelTest, DistortNormalizedMatchesOpenCvFormula) {
