@@ -80,13 +80,22 @@ const char* StateName(pipeline::CameraState s) {
 // One line of health: the periodic log line and systemd's STATUS=.
 std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage* tracking) {
   const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
+  // An aborted update says how far it refined: cells of that size everywhere.
+  char aborted[48] = "";
+  if (!s.complete) {
+    if (s.refined_cell_m > 0.0) {
+      std::snprintf(aborted, sizeof(aborted), " (aborted, refined to %.1f cm)",
+                    s.refined_cell_m * 100.0);
+    } else {
+      std::snprintf(aborted, sizeof(aborted), " (aborted)");
+    }
+  }
   char head[256];
   std::snprintf(head, sizeof(head),
                 "cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms cycle %.1f ms "
                 "skew %.1f ms deadline misses %llu missed cycles %llu |",
                 static_cast<unsigned long long>(s.sequence), s.health.degraded ? "DEGRADED" : "ok",
-                s.complete ? "" : " (aborted)",
-                cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
+                aborted, cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
                 cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occluded)),
                 s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
                 static_cast<unsigned long long>(s.health.deadline_misses),
