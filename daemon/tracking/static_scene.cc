@@ -287,12 +287,14 @@ std::vector<common::Box3> MergeIntoBoxes(const VoxelGrid& g,
 
 namespace {
 
-/// Calls seen(i) for every voxel i whose centre the camera sees: in front of
-/// it, projecting into the image, and not behind the obstacle surface seen
-/// through that pixel. skip(i) true: the voxel is not tested.
-template <typename Skip, typename Seen>
+/// Calls in_view(i) for every voxel i whose centre lies in the camera's view
+/// (in front of it, projecting into the image), and then seen(i) when the
+/// camera also sees it: not behind the obstacle surface seen through that
+/// pixel. skip(i) true: the voxel is not tested.
+template <typename Skip, typename InView, typename Seen>
 void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
-                      const std::vector<geometry::TriangleMesh>& occluders, Skip skip, Seen seen) {
+                      const std::vector<geometry::TriangleMesh>& occluders, Skip skip,
+                      InView in_view, Seen seen) {
   const geometry::CameraModel pinhole = camera.Pinhole();
   const geometry::ObstacleDepthMap depth = geometry::RenderObstacleDepth(pinhole, occluders);
   const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
@@ -306,6 +308,7 @@ void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
         const double u = std::floor(uv.x() + 0.5);
         const double w = std::floor(uv.y() + 0.5);
         if (!(u >= 0.0 && w >= 0.0 && u < depth.width && w < depth.height)) continue;
+        in_view(i);
         const std::size_t pixel =
             static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
         if (p_C.z() <= depth.centre_depth[pixel]) seen(i);
@@ -320,26 +323,33 @@ void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& 
                   const std::vector<geometry::TriangleMesh>& occluders,
                   std::vector<VoxelState>* states) {
   HG_CHECK(states->size() == g.size());
+  // 1: in some camera's view; 2: seen by some camera.
   std::vector<std::uint8_t> seen(g.size(), 0);
   for (const geometry::CameraModel& camera : cameras) {
     ForEachSeenVoxel(
-        g, camera, occluders, [&](std::uint32_t i) { return seen[i] != 0; },
-        [&](std::uint32_t i) { seen[i] = 1; });
+        g, camera, occluders, [&](std::uint32_t i) { return seen[i] == 2; },
+        [&](std::uint32_t i) { seen[i] = 1; }, [&](std::uint32_t i) { seen[i] = 2; });
   }
   for (std::size_t i = 0; i < g.size(); ++i) {
-    if ((*states)[i] != VoxelState::kKnown && seen[i] == 0) (*states)[i] = VoxelState::kOccluded;
+    const bool hidden = cameras.empty() || seen[i] == 1;
+    if ((*states)[i] != VoxelState::kKnown && hidden) (*states)[i] = VoxelState::kOccluded;
   }
 }
 
 std::vector<std::uint16_t> CameraViews(const VoxelGrid& g,
                                        const std::vector<geometry::CameraModel>& cameras,
-                                       const std::vector<geometry::TriangleMesh>& occluders) {
+                                       const std::vector<geometry::TriangleMesh>& occluders,
+                                       std::vector<std::uint8_t>* in_view) {
   std::vector<std::uint16_t> views(g.size(), 0);
+  if (in_view != nullptr) in_view->assign(g.size(), 0);
   const int n = std::min(static_cast<int>(cameras.size()), kMaxViewCameras);
   for (int c = 0; c < n; ++c) {
     const auto bit = static_cast<std::uint16_t>(1U << c);
     ForEachSeenVoxel(
         g, cameras[c], occluders, [](std::uint32_t) { return false; },
+        [&](std::uint32_t i) {
+          if (in_view != nullptr) (*in_view)[i] = 1;
+        },
         [&](std::uint32_t i) { views[i] |= bit; });
   }
   return views;
@@ -364,11 +374,12 @@ StaticVoxels BuildStaticVoxels(const VoxelGrid& g, const StaticScene& scene) {
   for (std::size_t i = 0; i < g.size(); ++i) {
     if (known[i] != 0 || mesh_known[i] != 0) out.states[i] = VoxelState::kKnown;
   }
-  if (!scene.cameras.empty()) out.views = CameraViews(g, scene.cameras, occluders);
+  std::vector<std::uint8_t> in_view;
+  if (!scene.cameras.empty()) out.views = CameraViews(g, scene.cameras, occluders, &in_view);
   if (scene.cameras.size() <= static_cast<std::size_t>(kMaxViewCameras) && !scene.cameras.empty()) {
     // The views already say which voxels some camera sees.
     for (std::size_t i = 0; i < g.size(); ++i) {
-      if (out.states[i] != VoxelState::kKnown && out.views[i] == 0) {
+      if (out.states[i] != VoxelState::kKnown && out.views[i] == 0 && in_view[i] != 0) {
         out.states[i] = VoxelState::kOccluded;
       }
     }

@@ -60,23 +60,27 @@ void VoxelizeSolid(const VoxelGrid& grid, const sim::SolidGeometry& solid,
 [[nodiscard]] std::vector<common::Box3> MergeIntoBoxes(const VoxelGrid& grid,
                                                        const std::vector<std::uint8_t>& mask);
 
-/// Relabels as kOccluded every voxel in `states` that is not kKnown and that no
-/// camera sees: for every camera its centre is behind the camera, projects
-/// outside the image, or lies behind the obstacle surface seen through the
-/// pixel it projects to (geometry::RenderObstacleDepth, centre_depth). Voxels
-/// no camera sees are kOccluded also without obstacles; without cameras every
-/// voxel that is not kKnown is.
+/// Relabels as kOccluded every voxel in `states` that is not kKnown and that
+/// the obstacles hide from every camera: its centre lies in some camera's view
+/// (in front of it, projecting into the image), and for every camera it is
+/// out of view or behind the obstacle surface seen through the pixel it
+/// projects to (geometry::RenderObstacleDepth, centre_depth). Space out of
+/// every camera's view (above the cameras, say) stays kFree: the rig does not
+/// cover it, and a person's ellipsoid gains nothing by reaching into it.
+/// Without cameras every voxel that is not kKnown is kOccluded.
 void MarkOccluded(const VoxelGrid& grid, const std::vector<geometry::CameraModel>& cameras,
                   const std::vector<geometry::TriangleMesh>& occluders,
                   std::vector<VoxelState>* states);
 
 /// Per voxel, bit c set when camera c (c < kMaxViewCameras; later cameras are
-/// left out) sees the voxel's centre, by MarkOccluded's rule.
+/// left out) sees the voxel's centre, by MarkOccluded's rule. With `in_view`,
+/// also 1 per voxel whose centre lies in the view of one of those cameras.
 [[nodiscard]] std::vector<std::uint16_t> CameraViews(
     const VoxelGrid& grid, const std::vector<geometry::CameraModel>& cameras,
-    const std::vector<geometry::TriangleMesh>& occluders);
+    const std::vector<geometry::TriangleMesh>& occluders,
+    std::vector<std::uint8_t>* in_view = nullptr);
 
-/// KNOWN from every obstacle, OCCLUDED from the cameras (analytic solids hide
+/// KNOWN from every obstacle, OCCLUDED from the cameras (MarkOccluded's rule; analytic solids hide
 /// what their circumscribing tessellation hides), the cameras' views, and the
 /// mesh boxes.
 /// Cost: one depth map per camera plus one projection per voxel and camera.

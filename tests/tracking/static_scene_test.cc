@@ -179,6 +179,16 @@ TEST(StaticVoxelsTest, KnownOccludedAndFree) {
   EXPECT_EQ(cell.At(v, {2.0, 2.0, 0.4}), VoxelState::kOccluded);  // Under the top.
   EXPECT_EQ(cell.At(v, {2.0, 2.0, 1.5}), VoxelState::kFree);      // Above it.
   EXPECT_EQ(cell.At(v, {0.5, 0.5, 0.4}), VoxelState::kFree);      // Beside it.
+  // Out of the camera's view (59 degrees off its axis, the image reaches 47):
+  // not hidden by an obstacle, so not OCCLUDED either.
+  EXPECT_EQ(cell.At(v, {0.1, 0.1, 1.9}), VoxelState::kFree);
+  std::vector<VoxelState> marked(cell.grid.size(), VoxelState::kFree);
+  MarkOccluded(cell.grid, cell.scene.cameras, cell.scene.meshes, &marked);
+  const Eigen::Vector3i out_of_view = cell.grid.VoxelOf({0.1, 0.1, 1.9});
+  const Eigen::Vector3i under = cell.grid.VoxelOf({2.0, 2.0, 0.4});
+  EXPECT_EQ(marked[cell.grid.Index(out_of_view.x(), out_of_view.y(), out_of_view.z())],
+            VoxelState::kFree);
+  EXPECT_EQ(marked[cell.grid.Index(under.x(), under.y(), under.z())], VoxelState::kOccluded);
   // A low camera looking under the table sees that space.
   cell.scene.cameras.push_back(scene::LookAtCamera({2, -0.5, 0.45}, {2, 2, 0.45}, 640, 480, 300));
   const StaticVoxels w = BuildStaticVoxels(cell.grid, cell.scene);
