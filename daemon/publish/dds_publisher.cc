@@ -137,6 +137,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   occ.sequence = snapshot.sequence;
   occ.stamp_ns = snapshot.stamp_ns;
   occ.complete = snapshot.complete;
+  occ.refined_cell_m = static_cast<float>(snapshot.refined_cell_m);
   for (int i = 0; i < 3; ++i) {
     occ.bounds_min[i] = static_cast<float>(snapshot.bounds.min[i]);
     occ.bounds_max[i] = static_cast<float>(snapshot.bounds.max[i]);

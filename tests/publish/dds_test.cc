@@ -43,6 +43,7 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   s.sequence = seed * 7 + 3;
   s.stamp_ns = 1'700'000'000'000'000'000LL + static_cast<std::int64_t>(seed);
   s.complete = (seed % 2) == 0;
+  s.refined_cell_m = s.complete ? 0.03125 : 0.0625;
   s.bounds.min = {-2.5, -1.25, 0.0};
   s.bounds.max = {2.5, 3.75, 2.5};
   s.depth = 9;
@@ -174,6 +175,7 @@ void ExpectSameContent(const pipeline::OccupancySnapshot& sent, const ReceivedOc
   EXPECT_EQ(occ.header.sequence, sent.sequence);
   EXPECT_EQ(occ.header.stamp_ns, sent.stamp_ns);
   EXPECT_EQ(occ.header.complete, sent.complete);
+  EXPECT_EQ(occ.header.refined_cell_m, static_cast<float>(sent.refined_cell_m));
   EXPECT_EQ(occ.header.depth, sent.depth);
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(occ.header.bounds_min[i], static_cast<float>(sent.bounds.min[i]));

@@ -206,17 +206,19 @@ void PrintOccupancy(const hullguard_Occupancy& s, bool json) {
   if (json) {
     std::printf(
         "{\"topic\": \"occupancy\", \"sequence\": %llu, \"stamp_ns\": %lld, \"complete\": %s, "
-        "\"depth\": %d, \"occupied\": %llu, \"occluded\": %llu, \"runs\": %u, "
+        "\"refined_cell_m\": %.5g, \"depth\": %d, \"occupied\": %llu, \"occluded\": %llu, "
+        "\"runs\": %u, "
         "\"occupied_m3\": %.6g}\n",
         static_cast<unsigned long long>(s.sequence), static_cast<long long>(s.stamp_ns),
-        s.complete ? "true" : "false", s.depth, static_cast<unsigned long long>(Cells(s.occupied)),
+        s.complete ? "true" : "false", s.refined_cell_m, s.depth,
+        static_cast<unsigned long long>(Cells(s.occupied)),
         static_cast<unsigned long long>(Cells(s.occluded)), s.occupied._length + s.occluded._length,
         OccupiedVolumeM3(s));
   } else {
     std::printf(
-        "occupancy seq=%llu complete=%d depth=%d occupied=%llu occluded=%llu runs=%u "
-        "occupied_m3=%.6g\n",
-        static_cast<unsigned long long>(s.sequence), s.complete ? 1 : 0, s.depth,
+        "occupancy seq=%llu complete=%d refined_cell_m=%.5g depth=%d occupied=%llu occluded=%llu "
+        "runs=%u occupied_m3=%.6g\n",
+        static_cast<unsigned long long>(s.sequence), s.complete ? 1 : 0, s.refined_cell_m, s.depth,
         static_cast<unsigned long long>(Cells(s.occupied)),
         static_cast<unsigned long long>(Cells(s.occluded)), s.occupied._length + s.occluded._length,
         OccupiedVolumeM3(s));
