@@ -16,6 +16,7 @@
 
 #include "scene/demo_cell.h"
 #include "support/allocation_counter.h"
+#include "support/grid_runs.h"
 
 namespace hg::app {
 namespace {
@@ -29,24 +30,7 @@ constexpr std::int64_t kPeriodNs = 33'333'333;
 void FillSnapshot(int frame, pipeline::OccupancySnapshot* snap) {
   const Vector3d centre(1.0 + frame * kPeriodNs * 1e-9, 2.0, 0.9);
   const tracking::Ellipsoid blob{centre, Vector3d(0.25, 0.2, 0.85)};
-  snap->occupied.clear();
-  const double cell = 4.0 / 128;
-  for (int z = 0; z < 128; ++z) {
-    for (int y = 0; y < 128; ++y) {
-      int start = -1;
-      for (int x = 0; x <= 128; ++x) {
-        const bool in = x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell,
-                                                          (z + 0.5) * cell));
-        if (in && start < 0) start = x;
-        if (!in && start >= 0) {
-          snap->occupied.push_back({static_cast<std::uint16_t>(start),
-                                    static_cast<std::uint16_t>(y), static_cast<std::uint16_t>(z),
-                                    static_cast<std::uint16_t>(x - start)});
-          start = -1;
-        }
-      }
-    }
-  }
+  snap->occupied = test::RunsInside(7, 4.0, [&](const Vector3d& p) { return blob.Contains(p); });
   snap->bounds = {Vector3d::Zero(), Vector3d::Constant(4.0)};
   snap->depth = 7;
   snap->sequence = static_cast<std::uint64_t>(frame) + 1;

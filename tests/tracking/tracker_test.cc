@@ -9,6 +9,7 @@
 
 #include "common/config_error.h"
 #include "scene/demo_cell.h"
+#include "support/grid_runs.h"
 
 namespace hg::tracking {
 namespace {
@@ -422,25 +423,7 @@ TEST(TrackerTest, OnAndUnderATableKeepTwoTracks) {
 // the snapshot's occupied runs.
 // The occupied cells of a blob on a 128^3 grid over a 4 m cube, as runs along x.
 std::vector<pipeline::GridRun> BlobRuns(const Ellipsoid& blob) {
-  std::vector<pipeline::GridRun> runs;
-  const double cell = 4.0 / 128;
-  for (int z = 0; z < 128; ++z) {
-    for (int y = 0; y < 128; ++y) {
-      int run_start = -1;
-      for (int x = 0; x <= 128; ++x) {
-        const bool in = x < 128 && blob.Contains(Vector3d((x + 0.5) * cell, (y + 0.5) * cell,
-                                                          (z + 0.5) * cell));
-        if (in && run_start < 0) run_start = x;
-        if (!in && run_start >= 0) {
-          runs.push_back({static_cast<std::uint16_t>(run_start), static_cast<std::uint16_t>(y),
-                          static_cast<std::uint16_t>(z),
-                          static_cast<std::uint16_t>(x - run_start)});
-          run_start = -1;
-        }
-      }
-    }
-  }
-  return runs;
+  return test::RunsInside(7, 4.0, [&](const Vector3d& p) { return blob.Contains(p); });
 }
 
 // Births wait for a whole snapshot: a person-sized blob in a cycle with a
