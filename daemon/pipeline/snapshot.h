@@ -112,8 +112,8 @@ struct OccupancySnapshot {
 /// to cells of at most one tracking voxel everywhere, from frames captured
 /// within max_skew_ms of each other (older frames are dilated by the
 /// distance a person may have moved meanwhile, which fattens every cone the
-/// same way). Tracks follow their
-/// people through other snapshots (RefinedForTracking); births wait.
+/// same way). Tracks follow their people through other snapshots
+/// (RefinedForTracking); births wait.
 [[nodiscard]] inline bool WholeForBirths(const OccupancySnapshot& s, double voxel_m,
                                          double max_skew_ms) {
   if (s.health.skew_ms > max_skew_ms) return false;
