@@ -1,6 +1,5 @@
 #include "geometry/camera.h"
 
-
 #include "geometry/footprint.h"
 
 #include <algorithm>
