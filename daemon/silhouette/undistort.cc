@@ -11,8 +11,6 @@
 #include <Eigen/Core>
 #include <Eigen/LU>
 
-#include <emmintrin.h>
-
 #include "common/check.h"
 
 namespace hg::silhouette {
@@ -126,7 +124,7 @@ struct RegionBounds {
 }  // namespace
 
 ConservativeUndistorter::ConservativeUndistorter(const geometry::CameraModel& camera)
-    : width_(camera.width), height_(camera.height) {
+    : width_(camera.width), height_(camera.height), source_(camera.width, camera.height) {
   HG_CHECK(width_ > 0 && height_ > 0);
   HG_CHECK(width_ < kOutside && height_ < kOutside);
   const int w = width_;
@@ -221,7 +219,6 @@ void ConservativeUndistorter::BuildTileRects() {
   tiles_w_ = (width_ + kTile - 1) / kTile;
   tiles_h_ = (height_ + kTile - 1) / kTile;
   tile_rects_.assign(static_cast<std::size_t>(tiles_w_) * tiles_h_, SourceRect{});
-  source_cover_.assign(tile_rects_.size(), 0);
   for (int ty = 0; ty < tiles_h_; ++ty) {
     for (int tx = 0; tx < tiles_w_; ++tx) {
       SourceRect t{kOutside, kOutside, 0, 0};
@@ -239,29 +236,21 @@ void ConservativeUndistorter::BuildTileRects() {
           t.v1 = std::max(t.v1, r.v1);
         }
       }
-      // In source tiles; a tile with a pixel whose region leaves the image is
-      // always read pixel by pixel.
+      // A tile with a pixel whose region leaves the image is always read
+      // pixel by pixel.
       tile_rects_[static_cast<std::size_t>(ty) * tiles_w_ + tx] =
-          outside ? SourceRect{kOutside, kOutside, kOutside, kOutside}
-                  : SourceRect{static_cast<std::uint16_t>(t.u0 / kTile),
-                               static_cast<std::uint16_t>(t.v0 / kTile),
-                               static_cast<std::uint16_t>(t.u1 / kTile),
-                               static_cast<std::uint16_t>(t.v1 / kTile)};
+          outside ? SourceRect{kOutside, kOutside, kOutside, kOutside} : t;
     }
   }
 }
 
-namespace {
-
-// 255 when some source pixel of r is foreground (> threshold) or r leaves the image.
-inline std::uint8_t PixelValue(const common::ImageViewU8& in, std::uint8_t threshold,
-                               std::uint16_t u0, std::uint16_t v0, std::uint16_t u1,
-                               std::uint16_t v1, std::uint16_t outside) {
-  if (u0 == outside) return 255;
-  const int du = u1 - u0;
-  const int dv = v1 - v0;
+std::uint8_t ConservativeUndistorter::PixelValue(const common::ImageViewU8& in,
+                                                 std::uint8_t threshold, const SourceRect& r) {
+  if (r.u0 == kOutside) return 255;
+  const int du = r.u1 - r.u0;
+  const int dv = r.v1 - r.v0;
   const std::ptrdiff_t stride = in.stride;
-  const std::uint8_t* p = in.Row(v0) + u0;
+  const std::uint8_t* p = in.Row(r.v0) + r.u0;
   std::uint8_t peak;
   // Almost every rectangle is 2x2 or smaller, nearly all the rest 3x3 or smaller.
   // Those read a fixed pattern whose middle row and column collapse onto the edges
@@ -287,8 +276,6 @@ inline std::uint8_t PixelValue(const common::ImageViewU8& in, std::uint8_t thres
   return peak > threshold ? 255 : 0;
 }
 
-}  // namespace
-
 void ConservativeUndistorter::ApplyPerPixel(const common::ImageViewU8& in, std::uint8_t threshold,
                                             common::ImageU8* out) const {
   HG_CHECK(out != nullptr);
@@ -296,8 +283,7 @@ void ConservativeUndistorter::ApplyPerPixel(const common::ImageViewU8& in, std::
   if (out->width != width_ || out->height != height_) *out = common::ImageU8(width_, height_);
   const std::size_t n = static_cast<std::size_t>(width_) * height_;
   for (std::size_t i = 0; i < n; ++i) {
-    const SourceRect& r = rects_[i];
-    out->pixels[i] = PixelValue(in, threshold, r.u0, r.v0, r.u1, r.v1, kOutside);
+    out->pixels[i] = PixelValue(in, threshold, rects_[i]);
   }
 }
 
@@ -306,48 +292,21 @@ void ConservativeUndistorter::Apply(const common::ImageViewU8& in, std::uint8_t 
   HG_CHECK(out != nullptr);
   HG_CHECK(in.data != nullptr && in.width == width_ && in.height == height_);
   if (out->width != width_ || out->height != height_) *out = common::ImageU8(width_, height_);
-  // 1. What each 8x8 tile of the source holds: bit 0 some background pixel,
-  // bit 1 some foreground pixel. x > threshold for unsigned bytes is a signed
-  // compare after flipping the top bit; 16 pixels (two tiles' row) at a time.
-  const __m128i bias = _mm_set1_epi8(static_cast<char>(0x80));
-  const __m128i thr = _mm_set1_epi8(static_cast<char>(threshold ^ 0x80));
-  const int full_pairs = width_ / 16;
-  for (int ty = 0; ty < tiles_h_; ++ty) {
-    std::uint8_t* cover = source_cover_.data() + static_cast<std::size_t>(ty) * tiles_w_;
-    std::fill(cover, cover + tiles_w_, 0);
-    for (int v = ty * kTile; v < std::min(height_, (ty + 1) * kTile); ++v) {
-      const std::uint8_t* px = in.Row(v);
-      int pair = 0;
-      for (; pair < full_pairs; ++pair) {
-        const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(px + 16 * pair));
-        const int bits = _mm_movemask_epi8(_mm_cmpgt_epi8(_mm_xor_si128(x, bias), thr));
-        const int lo = bits & 0xFF, hi = bits >> 8;
-        cover[2 * pair] |= static_cast<std::uint8_t>((lo != 0 ? 2 : 0) | (lo != 0xFF ? 1 : 0));
-        cover[2 * pair + 1] |= static_cast<std::uint8_t>((hi != 0 ? 2 : 0) | (hi != 0xFF ? 1 : 0));
-      }
-      for (int u = 16 * pair; u < width_; ++u) {
-        cover[u / kTile] |= static_cast<std::uint8_t>(px[u] > threshold ? 2 : 1);
-      }
-    }
-  }
+  // The source's silhouette quadtree tells, for the region an output tile's
+  // pixels may come from, whether it is all background, all foreground or mixed.
+  source_.Build(in, threshold);
   // 2. Per output tile: when every source tile its pixels may come from is
   // pure, so is the output tile; otherwise pixel by pixel.
   for (int ty = 0; ty < tiles_h_; ++ty) {
     const int v_end = std::min(height_, (ty + 1) * kTile);
     for (int tx = 0; tx < tiles_w_; ++tx) {
       const SourceRect& t = tile_rects_[static_cast<std::size_t>(ty) * tiles_w_ + tx];
-      std::uint8_t acc = 3;
-      if (t.u0 != kOutside) {
-        acc = 0;
-        for (int sy = t.v0; sy <= t.v1 && acc != 3; ++sy) {
-          const std::uint8_t* c = source_cover_.data() + static_cast<std::size_t>(sy) * tiles_w_;
-          for (int sx = t.u0; sx <= t.u1; ++sx) acc |= c[sx];
-        }
-      }
+      const Cover cover =
+          t.u0 == kOutside ? Cover::kMixed : source_.Query({t.u0, t.v0, t.u1, t.v1});
       const int u0 = tx * kTile;
       const int u_end = std::min(width_, u0 + kTile);
-      if (acc == 1 || acc == 2) {
-        const std::uint8_t value = acc == 2 ? 255 : 0;
+      if (cover == Cover::kBackground || cover == Cover::kForeground) {
+        const std::uint8_t value = cover == Cover::kForeground ? 255 : 0;
         for (int v = ty * kTile; v < v_end; ++v) {
           std::memset(out->pixels.data() + static_cast<std::size_t>(v) * width_ + u0, value,
                       static_cast<std::size_t>(u_end - u0));
@@ -357,8 +316,7 @@ void ConservativeUndistorter::Apply(const common::ImageViewU8& in, std::uint8_t 
       for (int v = ty * kTile; v < v_end; ++v) {
         const std::size_t row = static_cast<std::size_t>(v) * width_;
         for (int u = u0; u < u_end; ++u) {
-          const SourceRect& r = rects_[row + u];
-          out->pixels[row + u] = PixelValue(in, threshold, r.u0, r.v0, r.u1, r.v1, kOutside);
+          out->pixels[row + u] = PixelValue(in, threshold, rects_[row + u]);
         }
       }
     }

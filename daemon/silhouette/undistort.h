@@ -7,6 +7,7 @@
 
 #include "common/image.h"
 #include "geometry/camera.h"
+#include "silhouette/quadtree.h"
 
 namespace hg::silhouette {
 
@@ -25,9 +26,10 @@ class ConservativeUndistorter {
 
   /// `in` is the distorted grey mask (foreground iff value > threshold); `out`
   /// receives 255 for foreground and 0 for background.
-  /// Whole 8x8 output tiles whose possible source pixels all lie in pure
-  /// (all background or all foreground) source tiles are written at once; the
-  /// rest pixel by pixel. The result equals ApplyPerPixel() bit for bit.
+  /// Whole 8x8 output tiles whose possible source pixels (the bounding
+  /// rectangle of their regions) are all background or all foreground, as the
+  /// source's quadtree tells, are written at once; the rest pixel by pixel.
+  /// The result equals ApplyPerPixel() bit for bit.
   void Apply(const common::ImageViewU8& in, std::uint8_t threshold, common::ImageU8* out);
 
   /// The same map, every output pixel on its own: the reference Apply() must
@@ -47,14 +49,17 @@ class ConservativeUndistorter {
   int height_ = 0;
   static constexpr int kTile = 8;
   void BuildTileRects();
+  // 255 when some source pixel of r is foreground (> threshold) or r leaves the image.
+  static std::uint8_t PixelValue(const common::ImageViewU8& in, std::uint8_t threshold,
+                                 const SourceRect& r);
 
   std::vector<SourceRect> rects_;  // One per output pixel.
   int tiles_w_ = 0;
   int tiles_h_ = 0;
-  // Per 8x8 output tile: the source tiles its pixels' regions touch
-  // (inclusive, in tile units), or kOutside when one of them leaves the image.
+  // Per 8x8 output tile: the bounding rectangle of its pixels' source
+  // regions, or kOutside when one of them leaves the image.
   std::vector<SourceRect> tile_rects_;
-  std::vector<std::uint8_t> source_cover_;  // Apply() scratch: Cover bits per source tile.
+  SilhouetteQuadtree source_;  // Apply() scratch: the source mask's quadtree.
 };
 
 }  // namespace hg::silhouette

@@ -226,12 +226,11 @@ void Tracker::Init() {
 
 void Tracker::Update(const pipeline::OccupancySnapshot& snapshot) {
   map_.SetUnknownFromSnapshot(snapshot);
-  births_allowed_ =
-      pipeline::WholeForBirths(snapshot, options_.voxel_m, options_.birth_max_skew_ms);
-  Step(snapshot.stamp_ns);
+  Step(snapshot.stamp_ns,
+       pipeline::WholeForBirths(snapshot, options_.voxel_m, options_.birth_max_skew_ms));
 }
 
-void Tracker::Step(std::int64_t stamp_ns) {
+void Tracker::Step(std::int64_t stamp_ns, bool births) {
   // Time since the previous cycle: ages and times without support count all of
   // it (a track that lost its person during a long gap dies, and a birth near
   // it re-acquires its id, instead of a stale track lingering beside a new
@@ -287,7 +286,7 @@ void Tracker::Step(std::int64_t stamp_ns) {
   }
 
   // 4. Births (which may re-acquire a dying track), then the deaths.
-  if (births_allowed_) Births();
+  if (births) Births();
   for (Slot& s : slots_) {
     if (!s.dying) continue;
     s.dying = false;

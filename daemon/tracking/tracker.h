@@ -224,14 +224,15 @@ class Tracker {
   Tracker(const TrackerOptions& options, VoxelMap map, CollisionWorld world);
 
   /// Takes the snapshot's occupied cells as the UNKNOWN voxels and runs a cycle
-  /// at the snapshot's stamp.
+  /// at the snapshot's stamp; new tracks only from a whole snapshot
+  /// (pipeline::WholeForBirths).
   void Update(const pipeline::OccupancySnapshot& snapshot);
 
   /// Runs a cycle on the current voxel states (set UNKNOWN through
   /// voxel_map() first). stamp_ns: capture time of the data; the filters'
   /// step is the time since the previous cycle, clamped to [1 ms, max_dt_s];
-  /// deaths count the whole time.
-  void Step(std::int64_t stamp_ns);
+  /// deaths count the whole time. births false: existing tracks only.
+  void Step(std::int64_t stamp_ns, bool births = true);
 
   [[nodiscard]] VoxelMap& voxel_map() { return map_; }
   [[nodiscard]] const VoxelMap& voxel_map() const { return map_; }
@@ -265,7 +266,6 @@ class Tracker {
   void Init();
   void Assess(Slot* slot, double dt_s);
   void Births();
-  bool births_allowed_ = true;  // This cycle's snapshot may start tracks.
   /// A component with `unexplained` voxels outside every gate (sum and sum of
   /// squares of their centres): re-acquired by a lost track, or a new track.
   /// `tall`: the evidence reaches birth_min_height_m (a new track is a
