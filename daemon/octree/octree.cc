@@ -225,9 +225,14 @@ class Octree::Updater {
   // and returned packed (2 bits each, LeafState). They share a 3x3x3 grid of
   // projected points per camera; the cameras in `inherit` are full or hidden
   // for the parent and therefore for every child.
-  std::uint32_t FinestChildren(const Cell& cell, const common::Box3& box, std::uint32_t inherit,
-                               std::uint32_t verdicts, std::uint32_t clear, Counters& k) {
+  std::uint32_t FinestChildren(RootPool& pool, const Cell& cell, const common::Box3& box,
+                               std::uint32_t inherit, std::uint32_t verdicts, std::uint32_t clear,
+                               Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
+    // The children's cached obstacle relations: eight consecutive entries.
+    std::uint32_t* child_relations = cell.level + 1 <= tree_.relation_level_
+                                         ? &pool.relations[tree_.RelationIndex(cell.Child(0))]
+                                         : nullptr;
     WorkerScratch::ChildGrid& g = k.grids[cell.level];
     BeginChildGrid(g, cell, box);
     bool inherited_full = false;
@@ -253,8 +258,17 @@ class Octree::Updater {
         const int c = mixed[m];
         const geometry::Footprint fp = ChildFootprint(g, c, i);
         bool geometric = false;
-        const ObstacleRelation relation =
+        ObstacleRelation relation =
             ((clear >> c) & 1u) != 0 ? ObstacleRelation::kClear : ObstacleRelation::kUnknown;
+        if (relation == ObstacleRelation::kUnknown && child_relations != nullptr) {
+          std::uint32_t& cached = child_relations[i];
+          relation = static_cast<ObstacleRelation>((cached >> (2 * c)) & 3u);
+          if (relation == ObstacleRelation::kUnknown) {
+            relation = tree_.cameras_[c].has_obstacles() ? RelateToObstacles(tree_.cameras_[c], fp)
+                                                         : ObstacleRelation::kClear;
+            cached |= static_cast<std::uint32_t>(relation) << (2 * c);
+          }
+        }
         const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, relation, &geometric);
         ++k.verdicts;
         any_free = v == Verdict::kFree;
@@ -362,6 +376,9 @@ class Octree::Updater {
     // The node's static relation to the obstacles per camera: passed down
     // (`clear`), kept in the node, or computed once in its lifetime.
     std::uint32_t obstacle = node.obstacle;
+    std::uint32_t* cached =
+        cell.level <= tree_.relation_level_ ? &pool.relations[tree_.RelationIndex(cell)] : nullptr;
+    if (cached != nullptr) obstacle |= *cached;
     auto relation = [&](int c) {
       if (((clear >> c) & 1u) != 0) return ObstacleRelation::kClear;
       auto r = static_cast<ObstacleRelation>((obstacle >> (2 * c)) & 3u);
@@ -369,6 +386,7 @@ class Octree::Updater {
         r = tree_.cameras_[c].has_obstacles() ? RelateToObstacles(tree_.cameras_[c], fps[c])
                                               : ObstacleRelation::kClear;
         obstacle |= static_cast<std::uint32_t>(r) << (2 * c);
+        if (cached != nullptr) *cached = obstacle;
       }
       return r;
     };
@@ -446,7 +464,7 @@ class Octree::Updater {
     if (cell.level + 1 == tree_.config_.depth) {
       // Children at the finest level: evaluated together, stored in the node.
       const std::uint32_t packed =
-          FinestChildren(cell, box, child_inherit, node.verdicts, child_clear, k);
+          FinestChildren(pool, cell, box, child_inherit, node.verdicts, child_clear, k);
       MakeLeaf(pool, index, kPackedInner);
       Node& n = pool.nodes[index];
       n.children = packed;
@@ -498,6 +516,15 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   HG_CHECK(config_.coarse_first_depth >= 0);
   HG_CHECK(static_cast<int>(cameras_.size()) <= kMaxCameras);
   roots_.resize(kNumRoots);
+  bool any_obstacles = false;
+  for (const CameraView& view : cameras_) any_obstacles = any_obstacles || view.has_obstacles();
+  if (any_obstacles) {
+    constexpr int kDeepestRelationLevel = 7;
+    relation_level_ = std::min(config_.depth, kDeepestRelationLevel);
+    const int d = relation_level_ - kRootLevel;
+    const std::size_t cells = ((std::size_t{1} << (3 * (d + 1))) - 1) / 7;
+    for (RootPool& pool : roots_) pool.relations.assign(cells, 0u);
+  }
   Reset();
   pool_ = std::make_unique<common::WorkerPool>(config_.num_threads);
   scratch_ = std::make_unique<WorkerScratch[]>(config_.num_threads);
@@ -506,6 +533,20 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
 }
 
 Octree::~Octree() = default;
+
+std::size_t Octree::RelationIndex(const Cell& cell) const {
+  // Level by level; within a level, Morton order of the cell's place in its
+  // root, so that the eight children of a cell are consecutive, in Child() order.
+  const int d = cell.level - kRootLevel;
+  std::size_t morton = 0;
+  for (int b = 0; b < d; ++b) {
+    morton |= static_cast<std::size_t>((cell.x >> b) & 1u) << (3 * b);
+    morton |= static_cast<std::size_t>((cell.y >> b) & 1u) << (3 * b + 1);
+    morton |= static_cast<std::size_t>((cell.z >> b) & 1u) << (3 * b + 2);
+  }
+  const std::size_t level_offset = ((std::size_t{1} << (3 * d)) - 1) / 7;
+  return level_offset + morton;
+}
 
 std::int64_t Octree::FinishCoarse() {
   // Nodes the refinement did not reach missed this update's changes below
