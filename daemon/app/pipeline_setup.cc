@@ -20,6 +20,16 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.depth = config.octree.depth;
   options.boundary_coarsening = config.octree.boundary_coarsening;
   options.coarse_first_depth = config.octree.coarse_first_depth;
+  if (config.tracking.enabled) {
+    // Tracks start only from updates refined to the tracking voxel
+    // (pipeline::WholeForBirths): the coarse passes reach that level first.
+    int level = octree::Octree::kRootLevel;
+    while (level < config.octree.depth &&
+           pipeline::RefinedCellSize(config.cell.bounds, level) > config.tracking.voxel_m) {
+      ++level;
+    }
+    options.key_level = level;
+  }
   options.octree_threads = config.threads.octree;
   options.rate_hz = config.timing.rate_hz;
   options.deadline_ms = config.timing.deadline_ms;

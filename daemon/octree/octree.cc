@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/check.h"
 
@@ -82,11 +83,11 @@ class Octree::Updater {
   enum class Pass { kFull, kRefine };
 
   Updater(Octree& tree, std::span<const silhouette::SilhouetteQuadtree* const> masks,
-          std::uint32_t all_changed, const UpdateControl& control, Pass pass, int split_limit,
+          const UpdateControl& control, Pass pass, int split_limit,
           std::atomic<std::int64_t>& spent)
       : tree_(tree),
         masks_(masks),
-        all_changed_(all_changed),
+        now_(tree.update_count_),
         control_(control),
         boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening),
         split_limit_(split_limit),
@@ -102,7 +103,7 @@ class Octree::Updater {
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
     // A refinement pass starts where every change is applied already.
     const std::uint32_t unchanged = refine_ ? kAllCameras : 0u;
-    Visit(pool, 0, cell, false, 0, 0, 0, unchanged, nullptr, 0, counters);
+    Visit(pool, 0, cell, false, 0, 0, 0, unchanged, now_ - 1, nullptr, 0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -169,11 +170,12 @@ class Octree::Updater {
   // since the last update. Cameras in `unchanged` are known to be unchanged
   // in an enclosing box; *settled tells that no box inside this one can have
   // a change in camera c either (its footprint lies inside this one's).
-  bool ChangedIn(int c, const geometry::Footprint& fp, std::uint32_t unchanged,
-                 bool* settled) const {
+  // Changes are those since update `since`; `forced` = ForcedSince(since).
+  bool ChangedIn(int c, const geometry::Footprint& fp, std::uint32_t unchanged, std::uint32_t since,
+                 std::uint32_t forced, bool* settled) const {
     *settled = true;
     if (((unchanged >> c) & 1u) != 0) return false;
-    if ((all_changed_ >> c) & 1u) {
+    if ((forced >> c) & 1u) {
       *settled = false;
       return true;
     }
@@ -185,7 +187,10 @@ class Octree::Updater {
     }
     const CameraView& view = tree_.cameras_[c];
     const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
-    const bool changed = !clip.Empty() && m->AnyChanged(clip);
+    // Exact pixels for the changes of one build; tiles for several.
+    const std::uint64_t base = tree_.VersionAt(since, c);
+    const bool changed = !clip.Empty() && (m->version() == base + 1 ? m->AnyChanged(clip)
+                                                                    : m->ChangedSince(clip, base));
     *settled = !changed;
     return changed;
   }
@@ -297,8 +302,8 @@ class Octree::Updater {
   // `grid` is the parent's child grid, null for a root.
   void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force,
              std::uint32_t inherit, std::uint32_t parent_verdicts, std::uint32_t clear,
-             std::uint32_t unchanged, WorkerScratch::ChildGrid* grid, int child_index,
-             Counters& k) {
+             std::uint32_t unchanged, std::uint32_t since, WorkerScratch::ChildGrid* grid,
+             int child_index, Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
     const common::Box3 box = CellBox(tree_.config_.bounds, cell);
     auto footprint = [&](int c) {
@@ -306,11 +311,18 @@ class Octree::Updater {
     };
     ++k.visited;
     Node node = pool.nodes[index];  // Copy: the pool may grow below.
-    const bool recompute_all = force || (node.flags & kPending) != 0;
+    const bool pending = (node.flags & kPending) != 0;
     // Refinement of a node the coarse pass stopped at: its own verdicts are
-    // current, its subtree still needs this update's changes.
+    // current, its subtree still needs the changes since its stamp.
     const bool coarse_here = (node.flags & kCoarse) != 0;
     if (coarse_here) unchanged = 0;
+    // A pending node's cache and subtree are exact as of its stamp only.
+    if ((pending || coarse_here) && node.stamp < since) {
+      since = node.stamp;
+      unchanged = 0;
+    }
+    const std::uint32_t forced = tree_.ForcedSince(since);
+    const bool recompute_all = force || forced == kAllCameras;
     // Inherited verdicts are stored but never marked valid: when the parent
     // stops passing a camera down, the child computes its own verdict.
     bool inherited_news = false;  // An inherited verdict differs from the stored one.
@@ -333,9 +345,10 @@ class Octree::Updater {
           continue;
         }
         bool settled = false;
-        if (!ChangedIn(c, footprint(c), unchanged, &settled)) {
+        if (!ChangedIn(c, footprint(c), unchanged, since, forced, &settled)) {
           // Other cameras were not checked for changes: their caches may be stale.
           pool.nodes[index].valid = static_cast<std::uint16_t>(1u << c);
+          pool.nodes[index].flags = 0;  // Up to date, if it was pending.
           return;
         }
       }
@@ -354,11 +367,14 @@ class Octree::Updater {
       bool settled = false;
       // A kCoarse node's verdicts are current (the pass that stopped at it
       // computed them); only its children need to know what changed.
-      if (ChangedIn(c, fps[c], unchanged, &settled) && !coarse_here) recompute |= 1u << c;
+      if (ChangedIn(c, fps[c], unchanged, since, forced, &settled) && !coarse_here) {
+        recompute |= 1u << c;
+      }
       if (settled) child_unchanged |= 1u << c;
     }
     if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
         (node.flags & kHasPending) == 0) {
+      if (pending) pool.nodes[index].flags = 0;
       return;  // Subtree still exact.
     }
     if (CheckAbort(k)) {
@@ -369,7 +385,9 @@ class Octree::Updater {
       // Anything else is stale from here down.
       if (refine_ && !recompute_all && unchanged == kAllCameras) return;
       if ((node.flags & kCapped) == 0) ++k.pending;  // Capped ones are counted at the end.
-      pool.nodes[index].flags |= kPending;
+      Node& n = pool.nodes[index];
+      n.flags |= kPending;
+      n.stamp = recompute_all ? 0 : since;
       return;
     }
 
@@ -456,8 +474,11 @@ class Octree::Updater {
     }
     pool.nodes[index].obstacle = obstacle;
     if (cell.level >= split_limit_) {
-      // Coarse pass: refined by the next pass, its children kept.
-      pool.nodes[index].flags = kCapped | (recompute_all ? kPending : kCoarse);
+      // Coarse pass: refined by the next pass, its subtree kept, exact as of
+      // `since` (kCoarse), or not at all (pending).
+      Node& n = pool.nodes[index];
+      n.flags = kCapped | (recompute_all ? kPending : kCoarse) | (n.flags & kHasPending);
+      n.stamp = recompute_all ? 0 : since;
       pool.capped.push_back(index);
       return;
     }
@@ -490,7 +511,7 @@ class Octree::Updater {
     for (std::uint32_t i = 0; i < 8; ++i) {
       const Cell child = cell.Child(i);
       Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
-            child_unchanged, &g, static_cast<int>(i), k);
+            child_unchanged, since, &g, static_cast<int>(i), k);
       below |= pool.nodes[first + i].flags;
     }
     if (below != 0) pool.nodes[index].flags = kHasPending;
@@ -498,7 +519,7 @@ class Octree::Updater {
 
   Octree& tree_;
   std::span<const silhouette::SilhouetteQuadtree* const> masks_;
-  std::uint32_t all_changed_;
+  const std::uint32_t now_;  // This update's number.
   const UpdateControl& control_;
   const int boundary_depth_;
   const int split_limit_;  // Nodes at this level or deeper are not split.
@@ -529,10 +550,22 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   pool_ = std::make_unique<common::WorkerPool>(config_.num_threads);
   scratch_ = std::make_unique<WorkerScratch[]>(config_.num_threads);
   last_version_.assign(cameras_.size(), 0);
-  last_mask_.assign(cameras_.size(), nullptr);
+  last_mask_.assign(cameras_.size(), 0);
+  discontinuity_.assign(cameras_.size(), 0u);
+  version_ring_.assign(static_cast<std::size_t>(kVersionRing) * kMaxCameras, 0);
 }
 
 Octree::~Octree() = default;
+
+std::uint32_t Octree::ForcedSince(std::uint32_t since) const {
+  if (since == 0 || update_count_ - since >= kVersionRing) return kAllCameras;
+  if (since + 1 == update_count_) return forced_now_;
+  std::uint32_t forced = 0;
+  for (std::size_t c = 0; c < discontinuity_.size(); ++c) {
+    if (discontinuity_[c] > since) forced |= 1u << c;
+  }
+  return forced;
+}
 
 std::size_t Octree::RelationIndex(const Cell& cell) const {
   // Level by level; within a level, Morton order of the cell's place in its
@@ -556,7 +589,10 @@ std::int64_t Octree::FinishCoarse() {
     for (const std::uint32_t index : pool.capped) {
       Node& n = pool.nodes[index];
       if ((n.flags & kCapped) == 0) continue;  // Refined.
-      n.flags = kPending;
+      n.flags = kPending | (n.flags & kHasPending);
+      // Its verdicts are newer than its subtree, whose inherited verdicts
+      // came from the ones of its stamp: recompute them all first.
+      n.valid = 0;
       ++left;
     }
   }
@@ -578,18 +614,32 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
                            const UpdateControl& control) {
   HG_CHECK(masks.size() == cameras_.size());
   const auto start = Clock::now();
-  std::uint32_t all_changed = 0;
+  // Update numbers are 32 bits: after four billion updates, start over.
+  if (update_count_ == std::numeric_limits<std::uint32_t>::max()) {
+    Reset();
+    update_count_ = 1;
+    std::fill(discontinuity_.begin(), discontinuity_.end(), 0u);
+  }
+  const std::uint32_t now = ++update_count_;
+  std::uint64_t* versions = &version_ring_[(now % kVersionRing) * kMaxCameras];
+  forced_now_ = 0;
   for (std::size_t c = 0; c < masks.size(); ++c) {
     const silhouette::SilhouetteQuadtree* m = masks[c];
     if (m != nullptr) {
       HG_CHECK(m->width() == cameras_[c].width() && m->height() == cameras_[c].height());
     }
+    // The same quadtree, built again zero or more times (ChangedSince() finds
+    // what changed meanwhile), or still none.
+    const std::uint64_t id = m == nullptr ? 0 : m->id();
     const bool continuous =
-        m == last_mask_[c] &&
-        (m == nullptr ? last_version_[c] == 0 : m->version() == last_version_[c] + 1);
-    if (!continuous) all_changed |= 1u << c;
-    last_mask_[c] = m;
+        id == last_mask_[c] && (m == nullptr || m->version() >= last_version_[c]);
+    if (!continuous) {
+      discontinuity_[c] = now;
+      forced_now_ |= 1u << c;
+    }
+    last_mask_[c] = id;
     last_version_[c] = m == nullptr ? 0 : m->version();
+    versions[c] = last_version_[c];
   }
 
   for (int w = 0; w < pool_->num_threads(); ++w) {
@@ -600,8 +650,13 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   // Roots are independent: whichever worker takes a root owns its pool for the pass.
   std::atomic<std::int64_t> spent{0};
   auto run_pass = [&](Updater::Pass pass, int split_limit) {
-    Updater shared(*this, masks, all_changed, control, pass, split_limit, spent);
-    auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
+    Updater shared(*this, masks, control, pass, split_limit, spent);
+    // A different first root every update: roots an abort leaves unrefined
+    // are not the same ones every time.
+    const int rotation = 0;
+    auto run = [&](int r, int worker) {
+      shared.UpdateRoot((r + rotation) % kNumRoots, scratch_[worker]);
+    };
     pool_->Run(kNumRoots, run);
     return shared.aborted();
   };
@@ -616,11 +671,13 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     if (!aborted) stats.refined_level = config_.coarse_first_depth;
     // Every second level: each pass revisits the nodes the previous one stopped
     // at, and stopping one level above the finest would revisit most nodes.
-    for (int level = config_.coarse_first_depth + 2; !aborted; level += 2) {
-      const int limit = std::min(level, config_.depth);
-      aborted = run_pass(Updater::Pass::kRefine, limit);
-      if (!aborted) stats.refined_level = limit;
-      if (level >= config_.depth) break;
+    // A pass also stops at the key level, which the update should reach first.
+    for (int level = config_.coarse_first_depth; !aborted && level < config_.depth;) {
+      int next = std::min(level + 2, config_.depth);
+      if (config_.key_level > level && config_.key_level < next) next = config_.key_level;
+      aborted = run_pass(Updater::Pass::kRefine, next);
+      if (!aborted) stats.refined_level = next;
+      level = next;
     }
     stats.aborted = aborted;
     stats.nodes_pending += FinishCoarse();

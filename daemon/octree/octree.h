@@ -36,6 +36,10 @@ struct OctreeConfig {
   /// fine as the last completed pass everywhere, or finer, instead of whole
   /// roots left unvisited. A completed update gives the same leaves as without.
   int coarse_first_depth = 0;
+  /// With coarse first: a refinement pass also stops at this level (0: none),
+  /// so that an update that aborts deeper down is still exact to it. The
+  /// daemon sets the level of its tracking voxels.
+  int key_level = 0;
 };
 
 /// State of a leaf.
@@ -117,7 +121,8 @@ class Octree {
 
   /// Updates from the newest quadtree of every camera (same order as the views).
   /// nullptr marks a camera that delivers nothing (lost or stale): it sees nothing.
-  /// A quadtree whose version is not the successor of the one used last time
+  /// A camera's quadtree may have been built several times since the last
+  /// update (its changes since are found); another quadtree (another id())
   /// counts as changed everywhere.
   UpdateStats Update(std::span<const silhouette::SilhouetteQuadtree* const> masks,
                      const UpdateControl& control = {});
@@ -155,6 +160,9 @@ class Octree {
     std::uint8_t state = 0;                // NodeState.
     std::uint8_t flags = 0;                // kPending | kHasPending | kCoarse | kCapped.
     std::uint32_t obstacle = 0;            // 2 bits per camera: ObstacleRelation (static).
+    // kPending or kCoarse: the node's cache and subtree are exact as of this
+    // update (0: not at all), so only what changed since needs recomputing.
+    std::uint32_t stamp = 0;
   };
   // kPackedInner: a node one level above the finest whose eight children are
   // leaves stored in `children`, 2 bits each (LeafState), not as nodes.
@@ -200,6 +208,17 @@ class Octree {
   /// Index of `cell` (level kRootLevel .. relation_level_) in its root's relations.
   [[nodiscard]] std::size_t RelationIndex(const Cell& cell) const;
 
+  /// Updates remembered: a node stale for longer is recomputed whole.
+  static constexpr std::uint32_t kVersionRing = 64;
+  /// Cameras whose changes since update `since` are unknown (the quadtree was
+  /// replaced, lost or came back since): every camera when `since` is 0 or
+  /// older than the ring.
+  [[nodiscard]] std::uint32_t ForcedSince(std::uint32_t since) const;
+  /// Version of camera c's quadtree that update `since` used (within the ring).
+  [[nodiscard]] std::uint64_t VersionAt(std::uint32_t since, int c) const {
+    return version_ring_[(since % kVersionRing) * kMaxCameras + c];
+  }
+
   OctreeConfig config_;
   std::vector<CameraView> cameras_;
   /// Deepest level whose cells' obstacle relations are kept per root (none
@@ -210,7 +229,13 @@ class Octree {
   std::unique_ptr<WorkerScratch[]> scratch_;  // One per worker, cache-line separate.
   // Per camera: version of the quadtree used last; 0 = none (lost or never seen).
   std::vector<std::uint64_t> last_version_;
-  std::vector<const silhouette::SilhouetteQuadtree*> last_mask_;
+  std::vector<std::uint64_t> last_mask_;  // Per camera: id() of the quadtree used last; 0 = none.
+  // Number of the current (or last) update; the first is 2, so that "as of
+  // the previous update" is never 0, which means "not at all".
+  std::uint32_t update_count_ = 1;
+  std::uint32_t forced_now_ = 0;              // ForcedSince(update_count_ - 1).
+  std::vector<std::uint32_t> discontinuity_;  // Per camera: last update that was not continuous.
+  std::vector<std::uint64_t> version_ring_;   // [update % kVersionRing][camera].
 };
 
 template <class Fn>

@@ -52,6 +52,7 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   octree::OctreeConfig tree_config{options_.bounds, options_.depth, options_.octree_threads,
                                    options_.boundary_coarsening};
   tree_config.coarse_first_depth = options_.coarse_first_depth;
+  tree_config.key_level = options_.key_level;
   tree_ = std::make_unique<octree::Octree>(tree_config, std::move(views));
   const std::size_t cells = std::size_t{1} << (3 * options_.publish_depth);
   occupied_bits_.assign((cells + 63) / 64, 0);

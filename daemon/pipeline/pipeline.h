@@ -31,6 +31,7 @@ struct PipelineOptions {
   int depth = 9;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
+  int key_level = 0;  ///< octree::OctreeConfig::key_level.
   int octree_threads = 2;
   double rate_hz = 30.0;
   double deadline_ms = 25.0;

@@ -1,6 +1,7 @@
 #include "silhouette/quadtree.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 
 #include <emmintrin.h>
@@ -39,8 +40,40 @@ inline std::uint8_t CoverOf(std::uint64_t word, std::uint64_t valid) {
 
 }  // namespace
 
+namespace {
+
+std::uint64_t NewQuadtreeId() {
+  static std::atomic<std::uint64_t> next{1};
+  return next.fetch_add(1, std::memory_order_relaxed);
+}
+
+}  // namespace
+
+SilhouetteQuadtree::SilhouetteQuadtree(const SilhouetteQuadtree& other)
+    : width_(other.width_),
+      height_(other.height_),
+      tiles_w_(other.tiles_w_),
+      tiles_h_(other.tiles_h_),
+      version_(other.version_),
+      id_(NewQuadtreeId()),
+      words_(other.words_),
+      changed_(other.changed_),
+      valid_(other.valid_),
+      levels_(other.levels_) {}
+
+SilhouetteQuadtree& SilhouetteQuadtree::operator=(const SilhouetteQuadtree& other) {
+  if (this != &other) {
+    *this = SilhouetteQuadtree(other);  // A copy with a new id, moved in.
+  }
+  return *this;
+}
+
 SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
-    : width_(width), height_(height), tiles_w_((width + 7) / 8), tiles_h_((height + 7) / 8) {
+    : width_(width),
+      height_(height),
+      tiles_w_((width + 7) / 8),
+      tiles_h_((height + 7) / 8),
+      id_(NewQuadtreeId()) {
   HG_CHECK(width > 0 && height > 0);
   const std::size_t tiles = static_cast<std::size_t>(tiles_w_) * tiles_h_;
   words_.assign(tiles, 0);
@@ -56,8 +89,9 @@ SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
   int h = tiles_h_;
   int shift = 0;
   for (;;) {
+    const std::size_t n = static_cast<std::size_t>(w) * h;
     levels_.push_back(
-        Level{w, h, shift, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h)});
+        Level{w, h, shift, std::vector<std::uint8_t>(n), std::vector<std::uint64_t>(n, 0)});
     if (w == 1 && h == 1) break;
     w = (w + 1) / 2;
     h = (h + 1) / 2;
@@ -118,11 +152,13 @@ void SilhouetteQuadtree::CommitTileRow(int ty, bool first) {
   std::uint64_t* row_changed = changed_.data() + row;
   const std::uint64_t* row_valid = valid_.data() + row;
   std::uint8_t* cells = levels_[0].cells.data() + row;
+  std::uint64_t* changed_at = levels_[0].changed_at.data() + row;
   for (int tx = 0; tx < tiles_w_; ++tx) {
     const std::uint64_t fresh = row_changed[tx];
     const std::uint64_t diff = first ? row_valid[tx] : (fresh ^ row_words[tx]);
     row_words[tx] = fresh;
     row_changed[tx] = diff;
+    if (diff != 0) changed_at[tx] = version_;
     cells[tx] =
         static_cast<std::uint8_t>(CoverOf(fresh, row_valid[tx]) | (diff != 0 ? kChangedBit : 0));
   }
@@ -132,6 +168,7 @@ void SilhouetteQuadtree::MarkAllChanged() {
   for (std::size_t t = 0; t < words_.size(); ++t) {
     changed_[t] = valid_[t];
     levels_[0].cells[t] = static_cast<std::uint8_t>(CoverOf(words_[t], valid_[t]) | kChangedBit);
+    levels_[0].changed_at[t] = version_;
   }
   BuildCoarseLevels();
 }
@@ -146,16 +183,22 @@ void SilhouetteQuadtree::BuildCoarseLevels() {
       const std::uint8_t* r0 = fine.cells.data() + static_cast<std::size_t>(fy0) * fine.width;
       const std::uint8_t* r1 = has_fy1 ? r0 + fine.width : nullptr;
       std::uint8_t* out = coarse.cells.data() + static_cast<std::size_t>(y) * coarse.width;
+      const std::uint64_t* a0 = fine.changed_at.data() + static_cast<std::size_t>(fy0) * fine.width;
+      const std::uint64_t* a1 = has_fy1 ? a0 + fine.width : nullptr;
+      std::uint64_t* out_at = coarse.changed_at.data() + static_cast<std::size_t>(y) * coarse.width;
       for (int x = 0; x < coarse.width; ++x) {
         const int fx0 = 2 * x;
         const bool has_fx1 = fx0 + 1 < fine.width;
         std::uint8_t c = r0[fx0];
-        if (has_fx1) c |= r0[fx0 + 1];
+        std::uint64_t at = a0[fx0];
+        if (has_fx1) c |= r0[fx0 + 1], at = std::max(at, a0[fx0 + 1]);
         if (r1 != nullptr) {
           c |= r1[fx0];
-          if (has_fx1) c |= r1[fx0 + 1];
+          at = std::max(at, a1[fx0]);
+          if (has_fx1) c |= r1[fx0 + 1], at = std::max(at, a1[fx0 + 1]);
         }
         out[x] = c;
+        out_at[x] = at;
       }
     }
   }
@@ -249,6 +292,48 @@ Cover SilhouetteQuadtree::Query(const geometry::PixelRect& rect) const {
 
 bool SilhouetteQuadtree::AnyChanged(const geometry::PixelRect& rect) const {
   return Descend<true>(rect, 1) != 0;
+}
+
+bool SilhouetteQuadtree::ChangedSince(const geometry::PixelRect& rect,
+                                      std::uint64_t version) const {
+  struct Item {
+    int level, x, y;
+  };
+  Item stack[4 * 32];
+  int sp = 0;
+  const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
+  int start = 0;
+  const int top = static_cast<int>(levels_.size()) - 1;
+  while (start < top &&
+         (((tu1 >> start) - (tu0 >> start)) > 1 || ((tv1 >> start) - (tv0 >> start)) > 1)) {
+    ++start;
+  }
+  for (int y = tv1 >> start; y >= (tv0 >> start); --y) {
+    for (int x = tu1 >> start; x >= (tu0 >> start); --x) stack[sp++] = {start, x, y};
+  }
+  while (sp > 0) {
+    const Item it = stack[--sp];
+    const Level& lv = levels_[it.level];
+    if (lv.changed_at[static_cast<std::size_t>(it.y) * lv.width + it.x] <= version) continue;
+    // Tiles count whole; a coarser element only when the rect holds it.
+    if (it.level == 0) return true;
+    const int side = 8 << lv.shift;
+    const int ex0 = it.x * side;
+    const int ey0 = it.y * side;
+    if (ex0 >= rect.u0 && ey0 >= rect.v0 && ex0 + side - 1 <= rect.u1 &&
+        ey0 + side - 1 <= rect.v1) {
+      return true;
+    }
+    // Children whose tiles overlap the rect's tiles.
+    const int fl = it.level - 1;
+    const Level& fine = levels_[fl];
+    for (int fy = std::max(2 * it.y, tv0 >> fl); fy <= std::min(2 * it.y + 1, tv1 >> fl); ++fy) {
+      for (int fx = std::max(2 * it.x, tu0 >> fl); fx <= std::min(2 * it.x + 1, tu1 >> fl); ++fx) {
+        if (fx < fine.width && fy < fine.height) stack[sp++] = {fl, fx, fy};
+      }
+    }
+  }
+  return false;
 }
 
 bool SilhouetteQuadtree::IsForeground(int u, int v) const {

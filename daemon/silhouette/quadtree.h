@@ -28,6 +28,11 @@ enum class Cover : std::uint8_t { kNone = 0, kBackground = 1, kForeground = 2, k
 class SilhouetteQuadtree {
  public:
   SilhouetteQuadtree(int width, int height);
+  /// A copy is a new quadtree with the same content: it gets its own id().
+  SilhouetteQuadtree(const SilhouetteQuadtree& other);
+  SilhouetteQuadtree& operator=(const SilhouetteQuadtree& other);
+  SilhouetteQuadtree(SilhouetteQuadtree&&) = default;
+  SilhouetteQuadtree& operator=(SilhouetteQuadtree&&) = default;
 
   /// Rebuilds from a grey mask (foreground iff value > threshold). Changed flags
   /// are relative to the previously built mask; the first build marks every
@@ -50,11 +55,22 @@ class SilhouetteQuadtree {
   /// Precondition: rect is non-empty and inside the image.
   [[nodiscard]] bool AnyChanged(const geometry::PixelRect& rect) const;
 
+  /// True iff some pixel of `rect` may have changed in a Build() after the one
+  /// that made `version` (every change since, exact at 8x8 tiles: a tile with a
+  /// change counts wholly). ChangedSince(rect, version() - 1) covers AnyChanged(rect).
+  /// Precondition: rect is non-empty and inside the image.
+  [[nodiscard]] bool ChangedSince(const geometry::PixelRect& rect, std::uint64_t version) const;
+
   /// True iff pixel (u, v) is foreground.
   [[nodiscard]] bool IsForeground(int u, int v) const;
 
   /// Number of Build() calls so far.
   [[nodiscard]] std::uint64_t version() const { return version_; }
+  /// Unique among the quadtrees of the process (never 0), kept by a move: a
+  /// consumer holding (id, version) can tell a later build of the same
+  /// quadtree, whose changes since that version it may ask for, from another
+  /// quadtree that happens to sit at the same address.
+  [[nodiscard]] std::uint64_t id() const { return id_; }
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
   [[nodiscard]] int num_levels() const { return static_cast<int>(levels_.size()); }
@@ -65,6 +81,8 @@ class SilhouetteQuadtree {
     int height = 0;                   // Element rows.
     int shift = 0;                    // Element side in pixels is 8 << shift.
     std::vector<std::uint8_t> cells;  // Cover bits | kChangedBit.
+    /// Version of the last Build() that changed a pixel of the element.
+    std::vector<std::uint64_t> changed_at;
   };
   static constexpr std::uint8_t kChangedBit = 4;
 
@@ -80,6 +98,7 @@ class SilhouetteQuadtree {
   int tiles_w_;
   int tiles_h_;
   std::uint64_t version_ = 0;
+  std::uint64_t id_;
   std::vector<std::uint64_t> words_;    // Foreground bits per tile.
   std::vector<std::uint64_t> changed_;  // Changed bits per tile.
   std::vector<std::uint64_t> valid_;    // Bits inside the image per tile.

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "app/config_doc.h"
+#include "app/pipeline_setup.h"
 #include "app/tracking_stage.h"
 #include "common/config_error.h"
 #include "support/run_tool.h"
@@ -232,6 +233,21 @@ TEST(ConfigTest, DemoConfigLoads) {
     EXPECT_EQ(std::get<SimSourceConfig>(cam.source).camera, cam.model.name);
   }
   EXPECT_EQ(Summary(c), "4 cameras (4 sim), depth 7, 30 Hz");
+}
+
+// The coarse passes stop at the level whose cells are no larger than the
+// tracking voxel, so that an aborted cycle can still start tracks.
+TEST(ConfigTest, OctreeKeyLevelIsTheTrackingVoxel) {
+  Config c = LoadConfig(kConfigDir + "/paper_cell.yaml");
+  ASSERT_EQ(c.cell.bounds.max, Eigen::Vector3d(4, 4, 3));
+  c.tracking.voxel_m = 0.05;  // Level 7: 4 m / 128 = 3.1 cm; level 6 is 6.25 cm.
+  EXPECT_EQ(MakePipelineOptions(c).key_level, 7);
+  c.tracking.voxel_m = 0.0625;
+  EXPECT_EQ(MakePipelineOptions(c).key_level, 6);
+  c.tracking.voxel_m = 0.001;  // Finer than the octree: its depth.
+  EXPECT_EQ(MakePipelineOptions(c).key_level, c.octree.depth);
+  c.tracking.enabled = false;
+  EXPECT_EQ(MakePipelineOptions(c).key_level, 0);
 }
 
 TEST(ConfigTest, DocExampleLoads) {

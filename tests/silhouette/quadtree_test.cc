@@ -80,6 +80,58 @@ TEST(QuadtreeTest, QueryEqualsDenseMaskOnRandomMasksAndRects) {
   }
 }
 
+// ChangedSince(rect, v) is exact at tiles: true iff a tile the rect touches had
+// a pixel flip in some build after the v-th (the first build flips every pixel).
+TEST(QuadtreeTest, ChangedSinceFindsEveryTileChangedAfterTheVersion) {
+  std::mt19937_64 rng(29);
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{157, 93}, {640, 360}}) {
+    SilhouetteQuadtree tree(w, h);
+    const int tiles_w = (w + 7) / 8, tiles_h = (h + 7) / 8;
+    // changed[k][tile]: the tile flipped in build k + 1.
+    std::vector<std::vector<bool>> changed;
+    common::ImageU8 previous(w, h, 0);
+    for (int build = 1; build <= 6; ++build) {
+      // Sparse edits, so that many tiles keep still for several builds.
+      common::ImageU8 mask = previous;
+      std::uniform_int_distribution<int> uu(0, w - 1), vv(0, h - 1);
+      for (int k = 0; k < 5; ++k) {
+        const int u0 = uu(rng), v0 = vv(rng);
+        const std::uint8_t value = (rng() % 2) != 0 ? 255 : 0;
+        for (int v = v0; v < std::min(h, v0 + 20); ++v)
+          for (int u = u0; u < std::min(w, u0 + 30); ++u) mask.At(u, v) = value;
+      }
+      tree.Build(mask.View(), 127);
+      std::vector<bool> flips(static_cast<std::size_t>(tiles_w) * tiles_h, build == 1);
+      for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+          if ((mask.At(u, v) > 127) != (previous.At(u, v) > 127)) {
+            flips[static_cast<std::size_t>(v / 8) * tiles_w + u / 8] = true;
+          }
+        }
+      }
+      changed.push_back(flips);
+      previous = mask;
+      for (int q = 0; q < 500; ++q) {
+        const geometry::PixelRect r = RandomRect(rng, w, h);
+        const std::uint64_t since = rng() % (tree.version() + 1);
+        bool expect = false;
+        for (std::uint64_t k = since; k < tree.version() && !expect; ++k) {
+          for (int ty = r.v0 / 8; ty <= r.v1 / 8; ++ty)
+            for (int tx = r.u0 / 8; tx <= r.u1 / 8; ++tx)
+              expect = expect || changed[k][static_cast<std::size_t>(ty) * tiles_w + tx];
+        }
+        ASSERT_EQ(tree.ChangedSince(r, since), expect)
+            << w << "x" << h << " build " << build << " since " << since << " rect " << r.u0 << ","
+            << r.v0 << " " << r.u1 << "," << r.v1;
+        if (tree.AnyChanged(r)) ASSERT_TRUE(tree.ChangedSince(r, tree.version() - 1));
+      }
+    }
+    EXPECT_FALSE(tree.ChangedSince({0, 0, w - 1, h - 1}, tree.version()));
+    tree.MarkAllChanged();
+    EXPECT_TRUE(tree.ChangedSince({3, 3, 3, 3}, tree.version() - 1));
+  }
+}
+
 TEST(QuadtreeTest, ChangedFlagsFollowSmallEdits) {
   const int w = 200, h = 150;
   common::ImageU8 mask(w, h, 0);
