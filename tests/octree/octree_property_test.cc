@@ -300,8 +300,8 @@ TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   int aborted_after_coarse = 0;
   for (int frame = 0; frame < 40; ++frame) {
-    // Every third frame the objects stand still: nothing changes in the masks,
-    // and what an abort left unrefined must not come back as it was before.
+    // In two frames of every four the objects stand still: nothing changes in
+    // the masks, and what an abort left unrefined must not come back as it was.
     const Eigen::Vector3d step(0.03 * std::cos(frame * 0.4), -0.02, 0.01);
     if (frame % 4 < 2) {
       for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
