@@ -170,6 +170,17 @@ TEST_F(SynthCliTest, BenchReportsStagesAndTheDenseBaselineAndNoTruthPointFree) {
   ASSERT_EQ(aborted.code, 0) << aborted.err;
   EXPECT_EQ(JsonField(aborted.out, "aborts"), "3");
   EXPECT_EQ(JsonField(aborted.out, "truth_points_free"), "0");
+  EXPECT_NE(aborted.out.find("\"refined_level\": {\"median\": 0, \"min\": 0}"), std::string::npos)
+      << aborted.out;
+  // A deadline counted from the update's start, not the frame's: a generous
+  // one aborts nothing, and every update is refined to the depth.
+  const auto coarse = Hullguard("bench --scene " + Path("tiny.yaml") +
+                                " --frames 3 --depth 6 --coarse-first 3 --key-level 4"
+                                " --deadline-ms 10000 --json");
+  ASSERT_EQ(coarse.code, 0) << coarse.err;
+  EXPECT_EQ(JsonField(coarse.out, "aborts"), "0");
+  EXPECT_NE(coarse.out.find("\"refined_level\": {\"median\": 6, \"min\": 6}"), std::string::npos)
+      << coarse.out;
 
   const auto bad = Hullguard("bench --scene " + Path("tiny.yaml") + " --baseline voxels:3");
   EXPECT_EQ(bad.code, 2);

@@ -44,6 +44,7 @@ SceneEngine::SceneEngine(sim::Scene scene, const SceneEngineOptions& options)
   octree::OctreeConfig config{s.bounds, options.depth, options.threads,
                               options.boundary_coarsening};
   config.coarse_first_depth = options.coarse_first_depth;
+  config.key_level = options.key_level;
   tree_ = std::make_unique<octree::Octree>(config, std::move(views));
 }
 

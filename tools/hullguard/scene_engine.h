@@ -21,6 +21,7 @@ struct SceneEngineOptions {
   int threads = 2;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
+  int key_level = 0;  ///< octree::OctreeConfig::key_level.
 };
 
 /// Wall-clock times of one frame's stages.
