@@ -86,12 +86,13 @@ void Pipeline::CaptureLoop(int camera) {
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
     if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
-    ProcessFrame(camera, frame);
     if (black_box_ != nullptr) black_box_->Push(camera, frame);
+    // The frame is the source's to refill: a mask may be handed over whole.
+    ProcessFrame(camera, frame, &frame.grey);
   }
 }
 
-void Pipeline::ProcessFrame(int camera, const capture::Frame& frame) {
+void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare) {
   CameraRuntime& c = *cameras_[camera];
   const common::ImageU8* mask = &frame.grey;
   if (frame.kind != capture::FrameKind::kMask) {
@@ -123,6 +124,9 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame) {
   Slot& slot = c.slot.BeginWrite();
   if (c.undistorter) {
     c.undistorter->Apply(mask->View(), 127, &slot.mask);
+  } else if (mask == spare) {
+    // Swapped, not copied: the source refills the slot's previous buffer.
+    std::swap(slot.mask, *spare);
   } else {
     slot.mask.width = mask->width;
     slot.mask.height = mask->height;

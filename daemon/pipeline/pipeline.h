@@ -155,7 +155,9 @@ class Pipeline {
   };
 
   void CaptureLoop(int camera);
-  void ProcessFrame(int camera, const capture::Frame& frame);
+  /// `spare`, when not null, is `frame`'s mask and may be taken (swapped with
+  /// an older buffer of the same size) instead of copied.
+  void ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare = nullptr);
   void FusionLoop();
   /// One fusion cycle; fps_window_s > 0 also updates the frame rates.
   std::shared_ptr<OccupancySnapshot> RunCycle(std::int64_t now_ns,
