@@ -204,14 +204,7 @@ void SilhouetteQuadtree::BuildCoarseLevels() {
   }
 }
 
-template <bool kChanged>
-std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::uint8_t goal) const {
-  struct Item {
-    int level, x, y;
-  };
-  // Each level pushes at most 4 siblings on top of what is pending: 4 per level suffices.
-  Item stack[4 * 32];
-  int sp = 0;
+int SilhouetteQuadtree::PushCover(const geometry::PixelRect& rect, Item* stack) const {
   // Start at the finest level where the rect spans at most 2x2 elements
   // instead of descending from the root.
   const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
@@ -221,9 +214,17 @@ std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::u
          (((tu1 >> start) - (tu0 >> start)) > 1 || ((tv1 >> start) - (tv0 >> start)) > 1)) {
     ++start;
   }
+  int sp = 0;
   for (int y = tv1 >> start; y >= (tv0 >> start); --y) {
     for (int x = tu1 >> start; x >= (tu0 >> start); --x) stack[sp++] = {start, x, y};
   }
+  return sp;
+}
+
+template <bool kChanged>
+std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::uint8_t goal) const {
+  Item stack[kStackSize];
+  int sp = PushCover(rect, stack);
   std::uint8_t acc = 0;
   while (sp > 0) {
     const Item it = stack[--sp];
@@ -296,21 +297,9 @@ bool SilhouetteQuadtree::AnyChanged(const geometry::PixelRect& rect) const {
 
 bool SilhouetteQuadtree::ChangedSince(const geometry::PixelRect& rect,
                                       std::uint64_t version) const {
-  struct Item {
-    int level, x, y;
-  };
-  Item stack[4 * 32];
-  int sp = 0;
+  Item stack[kStackSize];
+  int sp = PushCover(rect, stack);
   const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
-  int start = 0;
-  const int top = static_cast<int>(levels_.size()) - 1;
-  while (start < top &&
-         (((tu1 >> start) - (tu0 >> start)) > 1 || ((tv1 >> start) - (tv0 >> start)) > 1)) {
-    ++start;
-  }
-  for (int y = tv1 >> start; y >= (tv0 >> start); --y) {
-    for (int x = tu1 >> start; x >= (tu0 >> start); --x) stack[sp++] = {start, x, y};
-  }
   while (sp > 0) {
     const Item it = stack[--sp];
     const Level& lv = levels_[it.level];

@@ -86,6 +86,15 @@ class SilhouetteQuadtree {
   };
   static constexpr std::uint8_t kChangedBit = 4;
 
+  /// An element on a descent's stack.
+  struct Item {
+    int level, x, y;
+  };
+  /// Each level pushes at most 4 siblings on top of what is pending.
+  static constexpr int kStackSize = 4 * 32;
+  /// Pushes the elements that cover `rect` at the finest level where it spans
+  /// at most 2x2 of them; returns how many.
+  int PushCover(const geometry::PixelRect& rect, Item* stack) const;
   template <bool kChanged>
   [[nodiscard]] std::uint8_t Descend(const geometry::PixelRect& rect, std::uint8_t goal) const;
   void BuildCoarseLevels();
