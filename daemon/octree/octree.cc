@@ -158,6 +158,18 @@ class Octree::Updater {
     return u >= 0 && v >= 0 && u < mask->width() && v < mask->height() && mask->IsForeground(u, v);
   }
 
+  // Camera c's relation to the obstacles of the box with footprint fp, from
+  // `bits` (2 bits per camera), computed and stored there when unknown.
+  ObstacleRelation RelationOf(int c, const geometry::Footprint& fp, std::uint32_t* bits) const {
+    auto r = static_cast<ObstacleRelation>((*bits >> (2 * c)) & 3u);
+    if (r == ObstacleRelation::kUnknown) {
+      r = tree_.cameras_[c].has_obstacles() ? RelateToObstacles(tree_.cameras_[c], fp)
+                                            : ObstacleRelation::kClear;
+      *bits |= static_cast<std::uint32_t>(r) << (2 * c);
+    }
+    return r;
+  }
+
   // Footprint of child i in camera c from the shared corner grid: bit-identical
   // to FootprintOf() of the child's own box (BoxProjector::ProjectGrid).
   geometry::Footprint ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i) const {
@@ -263,17 +275,10 @@ class Octree::Updater {
         const int c = mixed[m];
         const geometry::Footprint fp = ChildFootprint(g, c, i);
         bool geometric = false;
-        ObstacleRelation relation =
-            ((clear >> c) & 1u) != 0 ? ObstacleRelation::kClear : ObstacleRelation::kUnknown;
-        if (relation == ObstacleRelation::kUnknown && child_relations != nullptr) {
-          std::uint32_t& cached = child_relations[i];
-          relation = static_cast<ObstacleRelation>((cached >> (2 * c)) & 3u);
-          if (relation == ObstacleRelation::kUnknown) {
-            relation = tree_.cameras_[c].has_obstacles() ? RelateToObstacles(tree_.cameras_[c], fp)
-                                                         : ObstacleRelation::kClear;
-            cached |= static_cast<std::uint32_t>(relation) << (2 * c);
-          }
-        }
+        const ObstacleRelation relation = ((clear >> c) & 1u) != 0 ? ObstacleRelation::kClear
+                                          : child_relations != nullptr
+                                              ? RelationOf(c, fp, &child_relations[i])
+                                              : ObstacleRelation::kUnknown;
         const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, relation, &geometric);
         ++k.verdicts;
         any_free = v == Verdict::kFree;
@@ -399,13 +404,8 @@ class Octree::Updater {
     if (cached != nullptr) obstacle |= *cached;
     auto relation = [&](int c) {
       if (((clear >> c) & 1u) != 0) return ObstacleRelation::kClear;
-      auto r = static_cast<ObstacleRelation>((obstacle >> (2 * c)) & 3u);
-      if (r == ObstacleRelation::kUnknown) {
-        r = tree_.cameras_[c].has_obstacles() ? RelateToObstacles(tree_.cameras_[c], fps[c])
-                                              : ObstacleRelation::kClear;
-        obstacle |= static_cast<std::uint32_t>(r) << (2 * c);
-        if (cached != nullptr) *cached = obstacle;
-      }
+      const ObstacleRelation r = RelationOf(c, fps[c], &obstacle);
+      if (cached != nullptr) *cached = obstacle;
       return r;
     };
 
@@ -550,7 +550,7 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   pool_ = std::make_unique<common::WorkerPool>(config_.num_threads);
   scratch_ = std::make_unique<WorkerScratch[]>(config_.num_threads);
   last_version_.assign(cameras_.size(), 0);
-  last_mask_.assign(cameras_.size(), 0);
+  last_id_.assign(cameras_.size(), 0);
   discontinuity_.assign(cameras_.size(), 0u);
   version_ring_.assign(static_cast<std::size_t>(kVersionRing) * kMaxCameras, 0);
 }
@@ -631,13 +631,12 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     // The same quadtree, built again zero or more times (ChangedSince() finds
     // what changed meanwhile), or still none.
     const std::uint64_t id = m == nullptr ? 0 : m->id();
-    const bool continuous =
-        id == last_mask_[c] && (m == nullptr || m->version() >= last_version_[c]);
+    const bool continuous = id == last_id_[c] && (m == nullptr || m->version() >= last_version_[c]);
     if (!continuous) {
       discontinuity_[c] = now;
       forced_now_ |= 1u << c;
     }
-    last_mask_[c] = id;
+    last_id_[c] = id;
     last_version_[c] = m == nullptr ? 0 : m->version();
     versions[c] = last_version_[c];
   }

@@ -229,7 +229,7 @@ class Octree {
   std::unique_ptr<WorkerScratch[]> scratch_;  // One per worker, cache-line separate.
   // Per camera: version of the quadtree used last; 0 = none (lost or never seen).
   std::vector<std::uint64_t> last_version_;
-  std::vector<std::uint64_t> last_mask_;  // Per camera: id() of the quadtree used last; 0 = none.
+  std::vector<std::uint64_t> last_id_;  // Per camera: id() of the quadtree used last; 0 = none.
   // Number of the current (or last) update; the first is 2, so that "as of
   // the previous update" is never 0, which means "not at all".
   std::uint32_t update_count_ = 1;
