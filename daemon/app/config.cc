@@ -406,7 +406,7 @@ const Field<TrackingConfig> kTrackingFields[] = {
                 "its own thread on the newest snapshot and never delays the occupancy."},
     {.key = "voxel_m",
      .member = &TrackingConfig::voxel_m,
-     .meaning = "Edge of the tracking voxels (m) over cell.bounds: 22 bytes per voxel, at most "
+     .meaning = "Edge of the tracking voxels (m) over cell.bounds: 24 bytes per voxel, at most "
                 "50 million voxels.",
      .limits = {0.01, 1}},
     {.key = "particles",
@@ -437,6 +437,13 @@ const Field<TrackingConfig> kTrackingFields[] = {
      .member = &TrackingConfig::below_floor_weight,
      .meaning = "Score of lattice positions below cell.bounds (taken as the floor); 0 when the "
                 "bounds start above the floor."},
+    {.key = "support_reach_m",
+     .member = &TrackingConfig::support_reach_m,
+     .meaning = "An obstacle top under a particle's centre is that particle's floor (below it "
+                "everything scores as below_floor_weight, the obstacle too) when it lies at most "
+                "this far above the ellipsoid's bottom: a person standing on a table is tracked "
+                "at her height, not pushed up by the table top. 0: the cell's floor only.",
+     .limits = {0, kInf}},
     {.key = "collision_radius_m",
      .member = &TrackingConfig::collision_radius_m,
      .meaning = "Radius of the capsule a particle sweeps from its previous centre; particles "
@@ -863,6 +870,7 @@ constexpr std::pair<const char*, const char*> kTrackerOptionKeys[] = {
     {"likelihood.known", "tau_known"},
     {"likelihood.free", "epsilon_free"},
     {"likelihood.below_floor", "below_floor_weight"},
+    {"filter.support_reach_m", "support_reach_m"},
     {"filter.collision_radius_m", "collision_radius_m"},
     {"birth_min_volume_m3", "birth_min_volume_m3"},
     {"birth_min_height_m", "birth_min_height_m"},
@@ -873,7 +881,7 @@ constexpr std::pair<const char*, const char*> kTrackerOptionKeys[] = {
     {"reacquire_speed_mps", "reacquire_speed_mps"},
 };
 
-/// Most voxels of the tracking grid (22 bytes each: about 1.1 GB).
+/// Most voxels of the tracking grid (24 bytes each: about 1.2 GB).
 constexpr double kMaxTrackingVoxels = 50e6;
 
 /// Checks of the `tracking` section that involve more than one key, on values

@@ -166,6 +166,7 @@ struct TrackingConfig {
   double tau_known = -5.0;           ///< Of a voxel inside an obstacle.
   double epsilon_free = -0.1;        ///< Of a voxel seen empty.
   double below_floor_weight = -0.1;  ///< Of lattice positions below the cell's floor.
+  double support_reach_m = 0.25;     ///< An obstacle top this near the bottom is the floor.
   double collision_radius_m = 0.2;   ///< Capsule swept by a particle's move.
   double birth_min_volume_m3 = 0.06;
   double birth_min_height_m = 1.0;

@@ -46,6 +46,7 @@ tracking::TrackerOptions MakeTrackerOptions(const TrackingConfig& config, double
   o.likelihood.known = config.tau_known;
   o.likelihood.free = config.epsilon_free;
   o.likelihood.below_floor = config.below_floor_weight;
+  o.filter.support_reach_m = config.support_reach_m;
   o.filter.collision_radius_m = config.collision_radius_m;
   o.birth_min_volume_m3 = config.birth_min_volume_m3;
   o.birth_min_height_m = config.birth_min_height_m;

@@ -319,16 +319,16 @@ FillColumnBatchFn ColumnBatchFiller() {
 /// columns are computed first, in a batch (four at a time where the processor
 /// has AVX2), then the lookups.
 EllipsoidCounts CountColumns(const VoxelMap& map, Prepared e, std::span<const HalfSpace> own_region,
-                             FillColumnBatchFn fill) {
+                             FillColumnBatchFn fill, int floor_layer) {
   const VoxelGrid& g = map.grid();
   EllipsoidCounts out;
   e.tol = 1e-6 * (1.0 + e.h_idx.z());
   const int nx = g.nx();
   const int ny = g.ny();
   const int nz = g.nz();
-  // Below the grid every lattice position counts, at any x and y; without
+  // Below the floor every lattice position counts, at any x and y; without
   // that, only columns in the grid matter.
-  const bool reaches_floor = FloorInt(e.c_idx.z() - e.h_idx.z()) < 0;
+  const bool reaches_floor = FloorInt(e.c_idx.z() - e.h_idx.z()) < floor_layer;
   int x_lo = FloorInt(e.c_idx.x() - e.h_idx.x());
   int x_hi = CeilInt(e.c_idx.x() + e.h_idx.x());
   if (!reaches_floor) {
@@ -376,11 +376,11 @@ EllipsoidCounts CountColumns(const VoxelMap& map, Prepared e, std::span<const Ha
             return dx2 + (dy2 + dz * dz) <= 1.0;
           });
         }
-        if (span.lo < 0 && span.hi >= span.lo) {
-          out.below_floor += std::min(span.hi, -1) - span.lo + 1;
+        if (span.lo < floor_layer && span.hi >= span.lo) {
+          out.below_floor += std::min(span.hi, floor_layer - 1) - span.lo + 1;
         }
         if (!x_in || y < 0 || y >= ny) continue;
-        span.lo = std::max(span.lo, 0);
+        span.lo = std::max(span.lo, floor_layer);
         span.hi = std::min(span.hi, nz - 1);
         if (span.lo > span.hi) continue;
         const RowCounts* p = map.ColumnPrefix(x, y);
@@ -413,12 +413,13 @@ HalfSpace HalfSpace::NearerTo(const Eigen::Vector3d& own, const Eigen::Vector3d&
 }
 
 EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
-                            std::span<const HalfSpace> own_region, SumAxis axis) {
+                            std::span<const HalfSpace> own_region, SumAxis axis, int floor_layer) {
   const VoxelGrid& g = map.grid();
   const Eigen::Vector3d& c = ellipsoid.centre_W;
   const Eigen::Vector3d& h = ellipsoid.half_axes_m;
   EllipsoidCounts out;
   if (!(h.array() > 0.0).all() || !c.allFinite() || !h.allFinite()) return out;
+  floor_layer = std::clamp(floor_layer, 0, g.nz());
   const double inv_v = 1.0 / g.voxel_m();
   Prepared e;
   e.c = c;
@@ -437,7 +438,7 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   const FillColumnBatchFn fill = scalar ? FillColumnBatch : ColumnBatchFiller();
   if (axis == SumAxis::kZ || axis == SumAxis::kZScalar ||
       (axis == SumAxis::kAuto && e.h_idx.z() > e.h_idx.x())) {
-    return CountColumns(map, e, own_region, fill);
+    return CountColumns(map, e, own_region, fill, floor_layer);
   }
 
   // Layers within the bounding box, and per layer the rows within its
@@ -473,7 +474,7 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
     const double wy = std::sqrt(1.0 - dz2) * e.h_idx.y();
     int y_lo = FloorInt(e.c_idx.y() - wy);
     int y_hi = CeilInt(e.c_idx.y() + wy);
-    if (z < 0) {  // Below the grid: every lattice position counts, any x and y.
+    if (z < floor_layer) {  // Below the floor: every lattice position counts, any x and y.
       for (int y = y_lo; y <= y_hi; ++y) {
         const double dy = (g.CentreY(y) - cy) * inv_hy;
         const double q = dy * dy + dz2;
@@ -519,6 +520,10 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
   }
   acc.FillCounts(foreign, &out);
   return out;
+}
+
+int FloorLayerOf(const VoxelMap& map, const Ellipsoid& e, double reach_m) {
+  return map.SupportLayer(e.centre_W, e.centre_W.z() - e.half_axes_m.z() + reach_m);
 }
 
 void AppendVoxelsInside(const VoxelGrid& g, const Ellipsoid& e, std::vector<std::uint32_t>* out) {

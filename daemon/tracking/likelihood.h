@@ -20,11 +20,13 @@ struct LikelihoodWeights {
   double occluded = 0.1;  ///< sigma: nobody can see it: a person may hide there.
   double known = -5.0;    ///< tau: inside an obstacle: no person.
   double free = -0.1;     ///< epsilon: seen empty.
-  /// Lattice positions below the grid (its bottom is the cell's floor): no
-  /// person there, scored like free space. Were they not counted, an
-  /// ellipsoid could reach through the floor for free and its centre would
-  /// sink; scored like an obstacle, the ellipsoid's free margin would push it
-  /// up instead. Set to 0 when the bounds start above the floor.
+  /// Lattice positions below the floor (the grid's bottom, or the top of the
+  /// obstacle the ellipsoid stands on): no person there, scored like free
+  /// space. Were they not counted, an ellipsoid could reach through the floor
+  /// for free and its centre would sink; scored like an obstacle, the
+  /// ellipsoid's free margin would push it up instead (a person standing on a
+  /// table was tracked 0.1 m too high when the table top counted as KNOWN).
+  /// Set to 0 when the bounds start above the floor.
   double below_floor = -0.1;
 };
 
@@ -67,19 +69,22 @@ struct EllipsoidCounts {
   int occluded = 0;
   int known = 0;
   int free = 0;
-  /// Positions of the grid's lattice below its bottom layer (any x, y).
+  /// Positions of the grid's lattice below the floor (any x, y).
   int below_floor = 0;
   /// Voxels of the grid inside the ellipsoid (below_floor not included).
   [[nodiscard]] int Total() const { return unknown + foreign_unknown + occluded + known + free; }
 };
 
 /// Counts the voxels of `map` whose centres lie inside `ellipsoid`, by state,
-/// and the lattice positions below the grid's bottom layer inside it
-/// (below_floor); other positions outside the grid are not counted (the
-/// space beyond the cell's sides is neither evidence nor obstacle, so tracks
-/// can follow people out). `own_region`: UNKNOWN voxels
-/// outside the intersection of these half-spaces count as foreign_unknown
-/// (empty: every UNKNOWN voxel is own).
+/// and the lattice positions below the floor inside it (below_floor); other
+/// positions outside the grid are not counted (the space beyond the cell's
+/// sides is neither evidence nor obstacle, so tracks can follow people out).
+/// The floor is the grid's bottom, or the top of layer floor_layer - 1 when
+/// floor_layer > 0 (the surface the ellipsoid stands on:
+/// VoxelMap::SupportLayer): every lattice position inside the ellipsoid
+/// below it counts as below_floor, at any x and y and whatever its state.
+/// `own_region`: UNKNOWN voxels outside the intersection of these half-spaces
+/// count as foreign_unknown (empty: every UNKNOWN voxel is own).
 ///
 /// Which lines CountVoxels sums along: kAuto takes z columns when the
 /// ellipsoid is taller than it is long in x (fewer columns than rows), else x
@@ -99,7 +104,14 @@ enum class SumAxis { kAuto, kX, kZ, kXScalar, kZScalar };
 /// for concurrent calls on a map that is not being updated.
 [[nodiscard]] EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
                                           std::span<const HalfSpace> own_region = {},
-                                          SumAxis axis = SumAxis::kAuto);
+                                          SumAxis axis = SumAxis::kAuto, int floor_layer = 0);
+
+/// CountVoxels' floor_layer for `ellipsoid`: the obstacle top under its
+/// centre (VoxelMap::SupportLayer) when that lies at most reach_m above the
+/// ellipsoid's bottom (it stands on it), else 0 (the grid's bottom: a person
+/// standing beside a low obstacle, the centre above it, keeps the evidence
+/// of the legs beside it).
+[[nodiscard]] int FloorLayerOf(const VoxelMap& map, const Ellipsoid& ellipsoid, double reach_m);
 
 /// Appends the indices of the voxels of `grid` whose centres lie inside the
 /// ellipsoid (Ellipsoid::Contains), in index order: synthetic UNKNOWN blobs

@@ -59,6 +59,11 @@ struct ParticleFilterOptions {
   /// (whose voxels cost much more) its centre is pushed away. A larger p
   /// makes a few per cent of score a clear preference.
   double weight_exponent = 8.0;
+  /// An obstacle top under a particle's centre is its floor (below it every
+  /// position scores like space below the cell's floor, KNOWN or not) when it
+  /// lies at most this far above the ellipsoid's bottom: a person standing
+  /// on a table is scored as one standing on the floor. 0: the cell's floor only.
+  double support_reach_m = 0.25;
   /// Spread of the particles around the initial ellipsoid (standard deviations).
   double init_position_spread_m = 0.08;
   double init_axis_spread_m = 0.04;
@@ -96,7 +101,8 @@ class ParticleFilter {
   ///    every particle keeps its previous state;
   /// 3. weigh: w_i proportional to (max(Score_i, 0) / max_j Score_j)^p with
   ///    p = weight_exponent (uniform when no particle scores above zero),
-  ///    Score over CountVoxels(map, particle, own_region);
+  ///    Score over CountVoxels(map, particle, own_region) with the floor of
+  ///    FloorLayerOf(map, particle, support_reach_m);
   /// 4. estimate: weighted means, centre covariance, velocity low-pass;
   /// 5. resample (systematic).
   void Step(double dt_s, const VoxelMap& map, const LikelihoodWeights& weights,

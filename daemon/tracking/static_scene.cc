@@ -321,7 +321,7 @@ void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
 
 void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& cameras,
                   const std::vector<geometry::TriangleMesh>& occluders,
-                  std::vector<VoxelState>* states) {
+                  std::vector<VoxelState>* states, std::vector<std::uint8_t>* out_of_view) {
   HG_CHECK(states->size() == g.size());
   // 1: in some camera's view; 2: seen by some camera.
   std::vector<std::uint8_t> seen(g.size(), 0);
@@ -333,6 +333,11 @@ void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& 
   for (std::size_t i = 0; i < g.size(); ++i) {
     const bool hidden = cameras.empty() || seen[i] == 1;
     if ((*states)[i] != VoxelState::kKnown && hidden) (*states)[i] = VoxelState::kOccluded;
+  }
+  if (out_of_view != nullptr) {
+    out_of_view->assign(g.size(), 0);
+    if (cameras.empty()) return;
+    for (std::size_t i = 0; i < g.size(); ++i) (*out_of_view)[i] = seen[i] == 0 ? 1 : 0;
   }
 }
 
@@ -383,8 +388,11 @@ StaticVoxels BuildStaticVoxels(const VoxelGrid& g, const StaticScene& scene) {
         out.states[i] = VoxelState::kOccluded;
       }
     }
+    out.out_of_view.resize(g.size());
+    for (std::size_t i = 0; i < g.size(); ++i) out.out_of_view[i] = in_view[i] == 0 ? 1 : 0;
   } else {
-    MarkOccluded(g, scene.cameras, occluders, &out.states);
+    MarkOccluded(g, scene.cameras, occluders, &out.states,
+                 scene.cameras.empty() ? nullptr : &out.out_of_view);
   }
   out.mesh_boxes = MergeIntoBoxes(g, mesh_known);
   return out;

@@ -35,6 +35,10 @@ struct StaticVoxels {
   /// Per voxel: bit c set when camera c (c < kMaxViewCameras) sees its centre,
   /// as MarkOccluded decides it. Empty when there are no cameras.
   std::vector<std::uint16_t> views;
+  /// Per voxel: 1 when no camera has its centre in view (kFree voxels the rig
+  /// does not cover, above the cameras' views, say). Empty when there are no
+  /// cameras.
+  std::vector<std::uint8_t> out_of_view;
 };
 
 /// Sets mask[i] = 1 for every voxel of the mesh obstacle: voxels whose closed
@@ -67,10 +71,12 @@ void VoxelizeSolid(const VoxelGrid& grid, const sim::SolidGeometry& solid,
 /// projects to (geometry::RenderObstacleDepth, centre_depth). Space out of
 /// every camera's view (above the cameras, say) stays kFree: the rig does not
 /// cover it, and a person's ellipsoid gains nothing by reaching into it.
-/// Without cameras every voxel that is not kKnown is kOccluded.
+/// Without cameras every voxel that is not kKnown is kOccluded. With
+/// `out_of_view`, sets it to 1 per voxel whose centre no camera has in view.
 void MarkOccluded(const VoxelGrid& grid, const std::vector<geometry::CameraModel>& cameras,
                   const std::vector<geometry::TriangleMesh>& occluders,
-                  std::vector<VoxelState>* states);
+                  std::vector<VoxelState>* states,
+                  std::vector<std::uint8_t>* out_of_view = nullptr);
 
 /// Per voxel, bit c set when camera c (c < kMaxViewCameras; later cameras are
 /// left out) sees the voxel's centre, by MarkOccluded's rule. With `in_view`,

@@ -48,8 +48,8 @@ Tracker::Built Tracker::BuildStatic(const TrackerOptions& options, const common:
   for (std::size_t c = 0; c < scene.cameras.size() && c < kMaxViewCameras; ++c) {
     centres.push_back(scene.cameras[c].CentreW());
   }
-  return {VoxelMap(grid, std::move(voxels.states)), CollisionWorld(std::move(shapes)),
-          std::move(voxels.views), std::move(centres)};
+  return {VoxelMap(grid, std::move(voxels.states), voxels.out_of_view),
+          CollisionWorld(std::move(shapes)), std::move(voxels.views), std::move(centres)};
 }
 
 namespace {
@@ -106,6 +106,8 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
                             f.min_half_axis_xy_m * f.min_half_axis_z_m;
   Require(f.max_volume_m3 >= min_volume && Finite(f.max_volume_m3), "filter.max_volume_m3",
           "must hold the smallest ellipsoid of the half-axis ranges", &p);
+  Require(f.support_reach_m >= 0.0 && Finite(f.support_reach_m), "filter.support_reach_m",
+          "must be >= 0", &p);
   Require(f.velocity_gain >= 0.0 && f.velocity_gain <= 1.0, "filter.velocity_gain",
           "must be in [0, 1]", &p);
   Require(f.weight_exponent >= 1.0 && f.weight_exponent <= 64.0, "filter.weight_exponent",
@@ -297,7 +299,10 @@ void Tracker::Step(std::int64_t stamp_ns, bool births) {
 }
 
 void Tracker::Assess(Slot* s, double dt_s) {
-  const EllipsoidCounts n = CountVoxels(map_, s->filter->estimate().ellipsoid, s->region);
+  const Ellipsoid& e = s->filter->estimate().ellipsoid;
+  const double reach = s->filter->options().support_reach_m;
+  const EllipsoidCounts n = CountVoxels(map_, e, s->region, SumAxis::kAuto,
+                                        reach > 0.0 ? FloorLayerOf(map_, e, reach) : 0);
   const bool supported =
       n.unknown * map_.grid().voxel_volume_m3() >= options_.support_min_volume_m3 && n.unknown > 0;
   const int total = n.Total();

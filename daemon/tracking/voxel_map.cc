@@ -21,10 +21,17 @@ constexpr double kCellSlackVoxels = 1e-9;
 
 }  // namespace
 
-VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states) : grid_(grid) {
+VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states,
+                   std::span<const std::uint8_t> out_of_view)
+    : grid_(grid) {
   if (static_states.size() != grid_.size()) {
     throw common::ConfigError(
         "tracking: static voxel states: " + std::to_string(static_states.size()) +
+        " given, the grid has " + std::to_string(grid_.size()));
+  }
+  if (!out_of_view.empty() && out_of_view.size() != grid_.size()) {
+    throw common::ConfigError(
+        "tracking: out-of-view voxels: " + std::to_string(out_of_view.size()) +
         " given, the grid has " + std::to_string(grid_.size()));
   }
   flags_.resize(grid_.size());
@@ -33,6 +40,21 @@ VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states)
       throw common::ConfigError("tracking: static voxel states: UNKNOWN is not a static state");
     }
     flags_[i] = static_cast<std::uint8_t>(static_states[i]);
+    if (!out_of_view.empty() && out_of_view[i] != 0) flags_[i] |= kOutOfViewBit;
+  }
+  support_.assign(grid_.size(), 0);
+  for (int y = 0; y < grid_.ny(); ++y) {
+    for (int x = 0; x < grid_.nx(); ++x) {
+      int above_known = 0;  // 1 + the highest KNOWN layer so far.
+      for (int z = 0; z < grid_.nz(); ++z) {
+        const std::uint32_t i = grid_.Index(x, y, z);
+        if (static_states[i] == VoxelState::kKnown) {
+          above_known = z + 1;
+        } else {
+          support_[i] = static_cast<std::uint16_t>(above_known);
+        }
+      }
+    }
   }
   prefix_.resize(static_cast<std::size_t>(grid_.num_rows()) * (grid_.nx() + 1));
   for (int row = 0; row < grid_.num_rows(); ++row) RebuildRow(row);
@@ -49,6 +71,17 @@ VoxelMap::VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states)
   row_dirty_.assign(grid_.num_rows(), 0);
   dirty_rows_.reserve(grid_.num_rows());
   for (auto& r : cell_range_) r.reserve(std::size_t{1} << kReservedSnapshotDepth);
+}
+
+int VoxelMap::SupportLayer(const Eigen::Vector3d& p_W, double max_top_z_m) const {
+  const Eigen::Vector3d f = (p_W - grid_.origin()) / grid_.voxel_m();
+  if (!(f.x() >= 0.0 && f.y() >= 0.0 && f.z() >= 0.0 && f.x() < grid_.nx() && f.y() < grid_.ny())) {
+    return 0;
+  }
+  const int z = f.z() < grid_.nz() ? static_cast<int>(f.z()) : grid_.nz() - 1;
+  const int layer = support_[grid_.Index(static_cast<int>(f.x()), static_cast<int>(f.y()), z)];
+  const double top_z = grid_.origin().z() + layer * grid_.voxel_m();
+  return layer > 0 && top_z <= max_top_z_m ? layer : 0;
 }
 
 void VoxelMap::SetUnknown(std::span<const std::uint32_t> indices) {

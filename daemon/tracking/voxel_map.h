@@ -57,7 +57,7 @@ static_assert(static_cast<std::uint64_t>(RowCounts::kMaxSummedRows) * VoxelGrid:
 /// counts rebuilt. Cost per cycle: O(|previous set| + |new set| + changed
 /// rows * nx + changed columns * nz); at 4 cm voxels one moving person changes
 /// a few hundred rows of ~125 voxels and columns of ~75, tens of microseconds.
-/// Memory: 1 byte per voxel for the states, 16 bytes per voxel for the prefix
+/// Memory: 3 bytes per voxel for the states and support layers, 16 for the prefix
 /// counts, 8 bytes per voxel reserved for the UNKNOWN lists (so no cycle
 /// allocates, even with the whole cell occupied).
 ///
@@ -66,9 +66,12 @@ static_assert(static_cast<std::uint64_t>(RowCounts::kMaxSummedRows) * VoxelGrid:
 class VoxelMap {
  public:
   /// `static_states` holds one state per voxel of `grid` (index order), each
-  /// kFree, kOccluded or kKnown.
-  /// @throws common::ConfigError when the size does not match or a state is kUnknown.
-  VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states);
+  /// kFree, kOccluded or kKnown. `out_of_view` (empty, or one entry per voxel)
+  /// marks with 1 the voxels no camera has in view: they stay kFree whatever
+  /// the reconstruction says (see SetUnknown).
+  /// @throws common::ConfigError when a size does not match or a state is kUnknown.
+  VoxelMap(const VoxelGrid& grid, std::vector<VoxelState> static_states,
+           std::span<const std::uint8_t> out_of_view = {});
 
   [[nodiscard]] const VoxelGrid& grid() const { return grid_; }
 
@@ -90,13 +93,25 @@ class VoxelMap {
   /// OCCLUDED voxels allowed; those stay as they are: occupancy where no
   /// camera sees the voxel's centre is what the reconstruction could not
   /// certify free, not a camera's evidence of a person, and scores as the
-  /// space a person may hide in). Precondition: every index < grid().size().
+  /// space a person may hide in). Voxels out of every camera's view stay
+  /// kFree for the same reason: the reconstruction cannot carve them (it
+  /// reports them occupied when they are in the bounds), and as UNKNOWN they
+  /// would draw the ellipsoid of a person whose head nears the top of the
+  /// views up into them. Precondition: every index < grid().size().
   void SetUnknown(std::span<const std::uint32_t> indices);
 
   /// Replaces the UNKNOWN set by every voxel that overlaps (with positive
   /// volume) an occupied cell of the snapshot; the snapshot's grid may differ
   /// from this one in bounds and resolution. Cells outside this grid are ignored.
   void SetUnknownFromSnapshot(const pipeline::OccupancySnapshot& snapshot);
+
+  /// The surface under p_W: one above the highest KNOWN voxel below p_W's
+  /// voxel in its (x, y) column, when that voxel's top lies at most
+  /// max_top_z_m high; else 0 (the grid's bottom). Also 0 when p_W lies
+  /// outside the grid in x or y, below it, or in a KNOWN voxel. Above the
+  /// grid the column's top voxel stands for p_W's. CountVoxels' floor_layer
+  /// for an ellipsoid that stands on an obstacle (a person on a table).
+  [[nodiscard]] int SupportLayer(const Eigen::Vector3d& p_W, double max_top_z_m) const;
 
   /// The UNKNOWN voxels of the current cycle, each once (KNOWN and OCCLUDED
   /// ones left out).
@@ -121,13 +136,14 @@ class VoxelMap {
 
  private:
   static constexpr std::uint8_t kStaticMask = 0x3;
-  static constexpr std::uint8_t kUnknownBit = 0x4;  // UNKNOWN in the current cycle.
-  static constexpr std::uint8_t kStagedBit = 0x8;   // UNKNOWN in the cycle being built.
+  static constexpr std::uint8_t kUnknownBit = 0x4;     // UNKNOWN in the current cycle.
+  static constexpr std::uint8_t kStagedBit = 0x8;      // UNKNOWN in the cycle being built.
+  static constexpr std::uint8_t kOutOfViewBit = 0x10;  // No camera has it in view.
 
   void Stage(std::uint32_t index) {
     const std::uint8_t f = flags_[index];
-    if ((f & kStagedBit) == 0 &&
-        (f & kStaticMask) == static_cast<std::uint8_t>(VoxelState::kFree)) {
+    if ((f & (kStagedBit | kOutOfViewBit | kStaticMask)) ==
+        static_cast<std::uint8_t>(VoxelState::kFree)) {
       flags_[index] = f | kStagedBit;
       staged_.push_back(index);
     }
@@ -147,7 +163,10 @@ class VoxelMap {
   void RebuildColumn(int column);  // column = y * nx + x.
 
   VoxelGrid grid_;
-  std::vector<std::uint8_t> flags_;      // Static state | kUnknownBit | kStagedBit.
+  // Per voxel: 1 + the highest KNOWN layer below it in its column (0: none,
+  // or the voxel is KNOWN).
+  std::vector<std::uint16_t> support_;
+  std::vector<std::uint8_t> flags_;      // Static state | kUnknownBit | kStagedBit | kOutOfViewBit.
   std::vector<RowCounts> prefix_;        // (nx + 1) per row.
   std::vector<std::uint32_t> current_;   // UNKNOWN voxels now.
   std::vector<std::uint32_t> staged_;    // UNKNOWN voxels of the cycle being built.

@@ -133,6 +133,11 @@ TEST_F(TrackEvalTest, TracksTwoPeopleAndReportsPlausibleMetrics) {
     ASSERT_EQ(cell[2], "truth") << line;
     ++truths;
     EXPECT_TRUE(cell[4] == "walker" || cell[4] == "croucher") << line;
+    // The body box's half-extents: a person's size.
+    const double half_z = std::stod(cell[10]);
+    EXPECT_GT(std::stod(cell[8]), 0.05) << line;
+    EXPECT_GT(std::stod(cell[9]), 0.05) << line;
+    EXPECT_TRUE(half_z > 0.3 && half_z < 1.0) << line;
     if (cell[11].empty()) continue;
     ++matched;
     distance_sum += std::stod(cell[12]);

@@ -13,10 +13,10 @@ using Eigen::Vector3d;
 // The definition: every voxel of the grid, its centre tested with the
 // public predicates.
 EllipsoidCounts BruteCounts(const VoxelMap& map, const Ellipsoid& e,
-                            const std::vector<HalfSpace>& region) {
+                            const std::vector<HalfSpace>& region, int floor_layer = 0) {
   const VoxelGrid& g = map.grid();
   EllipsoidCounts n;
-  for (int z = 0; z < g.nz(); ++z) {
+  for (int z = floor_layer; z < g.nz(); ++z) {
     for (int y = 0; y < g.ny(); ++y) {
       for (int x = 0; x < g.nx(); ++x) {
         const Vector3d p = g.Centre(x, y, z);
@@ -43,7 +43,7 @@ EllipsoidCounts BruteCounts(const VoxelMap& map, const Ellipsoid& e,
   }
   // Lattice positions below the grid, any x and y (the ellipsoids of these
   // tests stay within 40 voxels of the grid).
-  for (int z = -40; z < 0; ++z) {
+  for (int z = -40; z < floor_layer; ++z) {
     for (int y = -40; y < g.ny() + 40; ++y) {
       for (int x = -40; x < g.nx() + 40; ++x) n.below_floor += e.Contains(g.Centre(x, y, z));
     }
@@ -170,6 +170,52 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
       EXPECT_NEAR(Score(fast, w), brute_score, 1e-9);
     }
   }
+}
+
+// A floor above the grid's bottom (an obstacle top the ellipsoid stands on):
+// every lattice position below it counts as below the floor, whatever its state.
+TEST(LikelihoodTest, RaisedFloorMatchesBruteForce) {
+  const VoxelGrid g({Vector3d(-0.3, 0.2, 0.0), Vector3d(1.1, 1.3, 0.9)}, 0.05);
+  const VoxelMap map = RandomMap(g, 11);
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<double> cx(-0.6, 1.4), cy(-0.1, 1.6), cz(-0.3, 1.2);
+  std::uniform_real_distribution<double> half_axis(0.02, 0.6);
+  std::uniform_int_distribution<int> floor_layer(0, g.nz());
+  for (int trial = 0; trial < 300; ++trial) {
+    const Ellipsoid e{Vector3d(cx(rng), cy(rng), cz(rng)),
+                      Vector3d(half_axis(rng), half_axis(rng), half_axis(rng))};
+    const int floor = floor_layer(rng);
+    std::vector<HalfSpace> region;
+    if (trial % 2 == 1)
+      region.push_back(HalfSpace::NearerTo(e.centre_W, e.centre_W + Vector3d(0.2, 0.1, -0.1)));
+    SCOPED_TRACE(testing::Message() << "trial " << trial << " floor " << floor);
+    const EllipsoidCounts brute = BruteCounts(map, e, region, floor);
+    for (const SumAxis axis :
+         {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar, SumAxis::kZScalar}) {
+      SCOPED_TRACE(static_cast<int>(axis));
+      ExpectSameCounts(CountVoxels(map, e, region, axis, floor), brute);
+    }
+  }
+}
+
+// FloorLayerOf: the obstacle top under the centre, when the ellipsoid's
+// bottom reaches near it.
+TEST(LikelihoodTest, FloorLayerOfAnEllipsoidOnATable) {
+  const VoxelGrid g({Vector3d::Zero(), Vector3d(2.0, 2.0, 2.0)}, 0.05);
+  std::vector<VoxelState> s(g.size(), VoxelState::kFree);
+  for (int y = 10; y < 30; ++y) {
+    for (int x = 10; x < 30; ++x) s[g.Index(x, y, 15)] = VoxelState::kKnown;  // Top 0.75-0.8.
+  }
+  const VoxelMap map(g, s);
+  const Ellipsoid on_top{Vector3d(1.0, 1.0, 1.5), Vector3d(0.25, 0.25, 0.75)};
+  EXPECT_EQ(FloorLayerOf(map, on_top, 0.25), 16);
+  EXPECT_EQ(FloorLayerOf(map, on_top, 0.0), 0);  // 0.8 > the bottom, 0.75.
+  // Standing on the floor beside it, the centre above its edge: out of reach.
+  const Ellipsoid beside{Vector3d(1.45, 1.0, 0.9), Vector3d(0.25, 0.25, 0.9)};
+  EXPECT_EQ(FloorLayerOf(map, beside, 0.25), 0);
+  // Under it.
+  const Ellipsoid under{Vector3d(1.0, 1.0, 0.35), Vector3d(0.5, 0.3, 0.35)};
+  EXPECT_EQ(FloorLayerOf(map, under, 0.25), 0);
 }
 
 // Voxel centres exactly on the surface and on the bisector planes: the fast

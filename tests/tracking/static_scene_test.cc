@@ -189,6 +189,19 @@ TEST(StaticVoxelsTest, KnownOccludedAndFree) {
   EXPECT_EQ(marked[cell.grid.Index(out_of_view.x(), out_of_view.y(), out_of_view.z())],
             VoxelState::kFree);
   EXPECT_EQ(marked[cell.grid.Index(under.x(), under.y(), under.z())], VoxelState::kOccluded);
+  // Out of view is recorded, and agrees with MarkOccluded's.
+  auto index = [&](const Vector3d& p) {
+    const Eigen::Vector3i c = cell.grid.VoxelOf(p);
+    return cell.grid.Index(c.x(), c.y(), c.z());
+  };
+  ASSERT_EQ(v.out_of_view.size(), cell.grid.size());
+  EXPECT_EQ(v.out_of_view[index({0.1, 0.1, 1.9})], 1);
+  EXPECT_EQ(v.out_of_view[index({2.0, 2.0, 1.5})], 0);
+  EXPECT_EQ(v.out_of_view[index({2.0, 2.0, 0.4})], 0);  // In view, behind the top.
+  std::vector<std::uint8_t> unseen;
+  std::vector<VoxelState> again(cell.grid.size(), VoxelState::kFree);
+  MarkOccluded(cell.grid, cell.scene.cameras, cell.scene.meshes, &again, &unseen);
+  EXPECT_EQ(unseen, v.out_of_view);
   // A low camera looking under the table sees that space.
   cell.scene.cameras.push_back(scene::LookAtCamera({2, -0.5, 0.45}, {2, 2, 0.45}, 640, 480, 300));
   const StaticVoxels w = BuildStaticVoxels(cell.grid, cell.scene);

@@ -330,6 +330,69 @@ TEST(TrackerTest, CrawlUnderATableKeepsTheTrack) {
   EXPECT_FALSE(tracker.tracks()[0].occluded);
 }
 
+// A person standing on a table is tracked at the height of one standing on
+// the floor: the table top under the ellipsoid is its floor (scored like the
+// space below the cell's floor), not an obstacle that pushes the ellipsoid up.
+TEST(TrackerTest, StandingOnATableIsTrackedAtItsHeight) {
+  const VoxelGrid g({Vector3d::Zero(), Vector3d(4, 4, 2.8)}, 0.04);
+  std::vector<VoxelState> states(g.size(), VoxelState::kFree);
+  sim::BoxSolid top;
+  top.centre_W = {1.5, 2.0, 0.98};
+  top.half_extents_m = {0.7, 0.7, 0.02};
+  for (int z = 0; z < g.nz(); ++z) {
+    for (int y = 0; y < g.ny(); ++y) {
+      for (int x = 0; x < g.nx(); ++x) {
+        const Vector3d d = (g.Centre(x, y, z) - top.centre_W).cwiseAbs();
+        if ((d - top.half_extents_m).maxCoeff() <= 0.0) {
+          states[g.Index(x, y, z)] = VoxelState::kKnown;
+        }
+      }
+    }
+  }
+  // A body-shaped blob: a box 0.4 x 0.3 x 1.7 m (a visual hull is not an
+  // ellipsoid), on the table top (z 1.0) and on the floor beside the table.
+  auto body = [&](const Vector3d& feet) {
+    std::vector<std::uint32_t> voxels;
+    for (int z = 0; z < g.nz(); ++z) {
+      for (int y = 0; y < g.ny(); ++y) {
+        for (int x = 0; x < g.nx(); ++x) {
+          const Vector3d d = g.Centre(x, y, z) - feet;
+          if (std::abs(d.x()) <= 0.2 && std::abs(d.y()) <= 0.15 && d.z() >= 0.0 && d.z() <= 1.7) {
+            voxels.push_back(g.Index(x, y, z));
+          }
+        }
+      }
+    }
+    return voxels;
+  };
+  auto vertical_error = [&](double support_reach_m, const Vector3d& feet) {
+    TrackerOptions options;
+    options.filter.support_reach_m = support_reach_m;
+    std::vector<CollisionShape> shapes;
+    shapes.emplace_back(top);
+    Tracker tracker(options, VoxelMap(g, states), CollisionWorld(shapes));
+    const std::vector<std::uint32_t> voxels = body(feet);
+    double sum = 0.0;
+    int n = 0;
+    for (int frame = 0; frame < 90; ++frame) {
+      tracker.voxel_map().SetUnknown(voxels);
+      tracker.Step(StampNs(frame));
+      EXPECT_EQ(tracker.tracks().size(), 1u) << "frame " << frame;
+      if (frame >= 30 && tracker.tracks().size() == 1) {
+        sum += tracker.tracks()[0].centre_W.z() - (feet.z() + 0.85);
+        ++n;
+      }
+    }
+    return n > 0 ? sum / n : 1e9;
+  };
+  const double on_floor = vertical_error(0.25, Vector3d(3.2, 2.0, 0.0));
+  const double on_table = vertical_error(0.25, Vector3d(1.5, 2.0, 1.0));
+  EXPECT_LT(std::abs(on_floor), 0.04);
+  EXPECT_LT(std::abs(on_table - on_floor), 0.03);
+  // Without the support surface the table top pushes the ellipsoid up.
+  EXPECT_GT(vertical_error(0.0, Vector3d(1.5, 2.0, 1.0)), on_table + 0.04);
+}
+
 // One person walks on a platform table while another crawls underneath, right
 // below them: the two blobs are stacked, split only by the table top. Each
 // keeps its own track and id the whole time; neither filter drifts through

@@ -185,6 +185,51 @@ TEST(VoxelMapTest, KnownAndOccludedStayStatic) {
   EXPECT_EQ(map.State(4, 2, 2), VoxelState::kFree);
 }
 
+// Space out of every camera's view stays FREE whatever the reconstruction
+// says: occupied only because no camera could carve it, it is no evidence.
+TEST(VoxelMapTest, OutOfViewNeverBecomesUnknown) {
+  const VoxelGrid g = SmallGrid();
+  std::vector<std::uint8_t> out_of_view(g.size(), 0);
+  out_of_view[g.Index(5, 5, 11)] = 1;
+  VoxelMap map(g, std::vector<VoxelState>(g.size(), VoxelState::kFree), out_of_view);
+  map.SetUnknown(std::vector<std::uint32_t>{g.Index(5, 5, 11), g.Index(5, 5, 10)});
+  EXPECT_EQ(map.State(5, 5, 11), VoxelState::kFree);
+  EXPECT_EQ(map.State(5, 5, 10), VoxelState::kUnknown);
+  ASSERT_EQ(map.unknown_voxels().size(), 1u);
+  ExpectPrefixMatchesStates(map);
+  EXPECT_THROW(VoxelMap(g, std::vector<VoxelState>(g.size(), VoxelState::kFree),
+                        std::vector<std::uint8_t>(5, 0)),
+               common::ConfigError);
+}
+
+// The surface under a point: the top of the highest KNOWN voxel below it in
+// its column, within reach of the ellipsoid's bottom.
+TEST(VoxelMapTest, SupportLayerIsTheTopOfTheObstacleBelow) {
+  const VoxelGrid g = SmallGrid();  // Origin z 0, 0.0625 m voxels, 12 layers.
+  std::vector<VoxelState> s(g.size(), VoxelState::kFree);
+  for (const int z : {1, 4, 5}) s[g.Index(3, 3, z)] = VoxelState::kKnown;
+  const VoxelMap map(g, s);
+  auto at = [&](int z, double dz) {
+    Vector3d p = g.Centre(3, 3, z);
+    p.z() += dz;
+    return p;
+  };
+  EXPECT_EQ(map.SupportLayer(at(9, 0.0), 10.0), 6);  // On the top of layers 4-5.
+  EXPECT_EQ(map.SupportLayer(at(6, 0.0), 10.0), 6);
+  EXPECT_EQ(map.SupportLayer(at(3, 0.0), 10.0), 2);   // Between: on layer 1.
+  EXPECT_EQ(map.SupportLayer(at(0, 0.0), 10.0), 0);   // Below everything.
+  EXPECT_EQ(map.SupportLayer(at(4, 0.0), 10.0), 0);   // Inside the obstacle.
+  EXPECT_EQ(map.SupportLayer(at(11, 1.0), 10.0), 6);  // Above the grid: its top voxel's.
+  // The top (z = 6 * 0.0625 = 0.375) out of reach of the ellipsoid's bottom.
+  EXPECT_EQ(map.SupportLayer(at(9, 0.0), 0.375), 6);
+  EXPECT_EQ(map.SupportLayer(at(9, 0.0), 0.37), 0);
+  // Outside the grid in x or y, or below it.
+  EXPECT_EQ(map.SupportLayer(g.Centre(3, 3, 9) - Vector3d(1.0, 0.0, 0.0), 10.0), 0);
+  EXPECT_EQ(map.SupportLayer(g.Centre(3, 3, 0) - Vector3d(0.0, 0.0, 0.1), 10.0), 0);
+  // Another column has no obstacle.
+  EXPECT_EQ(map.SupportLayer(g.Centre(4, 3, 9), 10.0), 0);
+}
+
 // Snapshot cells map to the voxels they overlap with positive volume.
 TEST(VoxelMapTest, SnapshotCellsMapToOverlappingVoxels) {
   std::mt19937_64 rng(5);

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -319,17 +320,32 @@ const tracking::MotMatch* MatchOf(const tracking::MotFrame& m, std::uint32_t obj
   return it == m.matches.end() ? nullptr : &*it;
 }
 
+/// Half-extents of the axis-aligned box of every body part.
+Vector3d BodyBoxHalfExtents(const sim::BodyState& body) {
+  Vector3d lo = Vector3d::Constant(std::numeric_limits<double>::infinity());
+  Vector3d hi = -lo;
+  for (const sim::BodyCapsule& c : body.parts) {
+    const Vector3d r = Vector3d::Constant(c.radius_m);
+    lo = lo.cwiseMin(c.a_W.cwiseMin(c.b_W) - r);
+    hi = hi.cwiseMax(c.a_W.cwiseMax(c.b_W) + r);
+  }
+  return 0.5 * (hi - lo);
+}
+
 /// One frame of the --trace CSV: each person in the cell (truth: body-box
-/// centre, the matched track and its distance, empty when missed), then each
-/// scored track (centre and half-axes).
+/// centre and half-extents, the matched track and its distance, empty when
+/// missed), then each scored track (centre and half-axes).
 void WriteTraceFrame(int frame, double t, const sim::Scene& scene,
                      const std::vector<tracking::MotPoint>& objects,
-                     const std::vector<int>& object_person, const tracking::MotFrame& m,
+                     const std::vector<int>& object_person,
+                     const std::vector<Vector3d>& object_half, const tracking::MotFrame& m,
                      const tracking::Tracker& tracker, std::FILE* out) {
   for (std::size_t k = 0; k < objects.size(); ++k) {
     const Vector3d& p = objects[k].position_W;
-    std::fprintf(out, "%d,%.4f,truth,%u,%s,%.4f,%.4f,%.4f,,,,", frame, t, objects[k].id,
-                 scene.people[object_person[k]].name.c_str(), p.x(), p.y(), p.z());
+    const Vector3d& h = object_half[k];
+    std::fprintf(out, "%d,%.4f,truth,%u,%s,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,", frame, t, objects[k].id,
+                 scene.people[object_person[k]].name.c_str(), p.x(), p.y(), p.z(), h.x(), h.y(),
+                 h.z());
     if (const tracking::MotMatch* match = MatchOf(m, objects[k].id)) {
       std::fprintf(out, "%u,%.4f\n", match->hypothesis_id, match->distance_m);
     } else {
@@ -389,6 +405,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
   std::vector<FrameRecord> records;
   std::vector<tracking::MotPoint> objects, hypotheses;
   std::vector<int> object_person;
+  std::vector<Vector3d> object_half;  // Body-box half-extents, for the trace.
   int max_tracks = 0;
   int aborted = 0, untracked = 0;
   std::unique_ptr<std::FILE, int (*)(std::FILE*)> trace(nullptr, &std::fclose);
@@ -431,6 +448,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
     record.t_s = t;
     objects.clear();
     object_person.clear();
+    object_half.clear();
     // People whose centre is outside the cell (entering, leaving) are not
     // scored: a track on them is neither a match nor a false positive.
     distractors.resize(num_foreground);
@@ -442,6 +460,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
       }
       objects.push_back({static_cast<std::uint32_t>(i + 1), body.centre_W});
       object_person.push_back(static_cast<int>(i));
+      if (trace) object_half.push_back(BodyBoxHalfExtents(body));
       record.people.emplace_back(static_cast<int>(i), body.centre_W);
       ++people[i].frames;
     }
@@ -458,7 +477,8 @@ int RunTrackEval(const TrackEvalFlags& f) {
     }
     max_tracks = std::max(max_tracks, static_cast<int>(hypotheses.size()));
     const tracking::MotFrame& m = mot.AddFrame(objects, hypotheses, distractors);
-    if (trace) WriteTraceFrame(frame, t, s, objects, object_person, m, tracker, trace.get());
+    if (trace)
+      WriteTraceFrame(frame, t, s, objects, object_person, object_half, m, tracker, trace.get());
     for (std::size_t k = 0; k < objects.size(); ++k) {
       const int person = object_person[k];
       const tracking::MotMatch* match = MatchOf(m, objects[k].id);
