@@ -321,7 +321,7 @@ void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
 
 void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& cameras,
                   const std::vector<geometry::TriangleMesh>& occluders,
-                  std::vector<VoxelState>* states, std::vector<std::uint8_t>* out_of_view) {
+                  std::vector<VoxelState>* states) {
   HG_CHECK(states->size() == g.size());
   // 1: in some camera's view; 2: seen by some camera.
   std::vector<std::uint8_t> seen(g.size(), 0);
@@ -334,11 +334,35 @@ void MarkOccluded(const VoxelGrid& g, const std::vector<geometry::CameraModel>& 
     const bool hidden = cameras.empty() || seen[i] == 1;
     if ((*states)[i] != VoxelState::kKnown && hidden) (*states)[i] = VoxelState::kOccluded;
   }
-  if (out_of_view != nullptr) {
-    out_of_view->assign(g.size(), 0);
-    if (cameras.empty()) return;
-    for (std::size_t i = 0; i < g.size(); ++i) (*out_of_view)[i] = seen[i] == 0 ? 1 : 0;
+}
+
+std::vector<std::uint8_t> OutOfView(const VoxelGrid& g,
+                                    const std::vector<geometry::CameraModel>& cameras) {
+  std::vector<std::uint8_t> out(g.size(), 1);
+  const double r = std::sqrt(3.0) * g.voxel_m();
+  for (const geometry::CameraModel& camera : cameras) {
+    const geometry::CameraModel pinhole = camera.Pinhole();
+    const double f = std::max(pinhole.K(0, 0), pinhole.K(1, 1));
+    const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
+    for (int z = 0; z < g.nz(); ++z) {
+      for (int y = 0; y < g.ny(); ++y) {
+        Vector3d p_C = pinhole.ToCamera(g.Centre(0, y, z));
+        for (int x = 0; x < g.nx(); ++x, p_C += step) {
+          const std::uint32_t i = g.Index(x, y, z);
+          if (out[i] == 0 || p_C.z() <= 2.0 * r) continue;
+          // The ball's image lies within this many pixels of the centre's
+          // (its angular radius asin(r / d) <= r / (z - r) in either image axis).
+          const double margin = f * r / (p_C.z() - r);
+          const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
+          if (uv.x() - margin >= -0.5 && uv.y() - margin >= -0.5 &&
+              uv.x() + margin <= camera.width - 0.5 && uv.y() + margin <= camera.height - 0.5) {
+            out[i] = 0;
+          }
+        }
+      }
+    }
   }
+  return out;
 }
 
 std::vector<std::uint16_t> CameraViews(const VoxelGrid& g,
@@ -388,12 +412,10 @@ StaticVoxels BuildStaticVoxels(const VoxelGrid& g, const StaticScene& scene) {
         out.states[i] = VoxelState::kOccluded;
       }
     }
-    out.out_of_view.resize(g.size());
-    for (std::size_t i = 0; i < g.size(); ++i) out.out_of_view[i] = in_view[i] == 0 ? 1 : 0;
   } else {
-    MarkOccluded(g, scene.cameras, occluders, &out.states,
-                 scene.cameras.empty() ? nullptr : &out.out_of_view);
+    MarkOccluded(g, scene.cameras, occluders, &out.states);
   }
+  if (!scene.cameras.empty()) out.out_of_view = OutOfView(g, scene.cameras);
   out.mesh_boxes = MergeIntoBoxes(g, mesh_known);
   return out;
 }

@@ -35,9 +35,8 @@ struct StaticVoxels {
   /// Per voxel: bit c set when camera c (c < kMaxViewCameras) sees its centre,
   /// as MarkOccluded decides it. Empty when there are no cameras.
   std::vector<std::uint16_t> views;
-  /// Per voxel: 1 when no camera has its centre in view (kFree voxels the rig
-  /// does not cover, above the cameras' views, say). Empty when there are no
-  /// cameras.
+  /// Per voxel: 1 when no camera has it in view with a margin (OutOfView).
+  /// Empty when there are no cameras.
   std::vector<std::uint8_t> out_of_view;
 };
 
@@ -71,12 +70,20 @@ void VoxelizeSolid(const VoxelGrid& grid, const sim::SolidGeometry& solid,
 /// projects to (geometry::RenderObstacleDepth, centre_depth). Space out of
 /// every camera's view (above the cameras, say) stays kFree: the rig does not
 /// cover it, and a person's ellipsoid gains nothing by reaching into it.
-/// Without cameras every voxel that is not kKnown is kOccluded. With
-/// `out_of_view`, sets it to 1 per voxel whose centre no camera has in view.
+/// Without cameras every voxel that is not kKnown is kOccluded.
 void MarkOccluded(const VoxelGrid& grid, const std::vector<geometry::CameraModel>& cameras,
                   const std::vector<geometry::TriangleMesh>& occluders,
-                  std::vector<VoxelState>* states,
-                  std::vector<std::uint8_t>* out_of_view = nullptr);
+                  std::vector<VoxelState>* states);
+
+/// Per voxel: 1 unless some camera has the ball of one voxel diagonal around
+/// its centre wholly in view (in front of it, projecting inside the image).
+/// The octree cannot carve a cell that reaches out of a camera's image with
+/// that camera, so near the edge of the views (under the top of every
+/// camera's image, say) the occupancy holds a layer of cells no camera could
+/// carve; their voxels, and those wholly out of view, are no evidence of a
+/// person (VoxelMap keeps them kFree).
+[[nodiscard]] std::vector<std::uint8_t> OutOfView(
+    const VoxelGrid& grid, const std::vector<geometry::CameraModel>& cameras);
 
 /// Per voxel, bit c set when camera c (c < kMaxViewCameras; later cameras are
 /// left out) sees the voxel's centre, by MarkOccluded's rule. With `in_view`,
