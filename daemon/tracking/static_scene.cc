@@ -287,6 +287,19 @@ std::vector<common::Box3> MergeIntoBoxes(const VoxelGrid& g,
 
 namespace {
 
+/// Calls fn(i, p_C) for every voxel i of the grid with p_C its centre in the
+/// frame of the pinhole camera.
+template <typename Fn>
+void ForEachVoxelCentre(const VoxelGrid& g, const geometry::CameraModel& pinhole, Fn fn) {
+  const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
+  for (int z = 0; z < g.nz(); ++z) {
+    for (int y = 0; y < g.ny(); ++y) {
+      Vector3d p_C = pinhole.ToCamera(g.Centre(0, y, z));
+      for (int x = 0; x < g.nx(); ++x, p_C += step) fn(g.Index(x, y, z), p_C);
+    }
+  }
+}
+
 /// Calls in_view(i) for every voxel i whose centre lies in the camera's view
 /// (in front of it, projecting into the image), and then seen(i) when the
 /// camera also sees it: not behind the obstacle surface seen through that
@@ -297,24 +310,17 @@ void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
                       InView in_view, Seen seen) {
   const geometry::CameraModel pinhole = camera.Pinhole();
   const geometry::ObstacleDepthMap depth = geometry::RenderObstacleDepth(pinhole, occluders);
-  const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
-  for (int z = 0; z < g.nz(); ++z) {
-    for (int y = 0; y < g.ny(); ++y) {
-      Vector3d p_C = pinhole.ToCamera(g.Centre(0, y, z));
-      for (int x = 0; x < g.nx(); ++x, p_C += step) {
-        const std::uint32_t i = g.Index(x, y, z);
-        if (skip(i) || p_C.z() <= 0.0) continue;
-        const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
-        const double u = std::floor(uv.x() + 0.5);
-        const double w = std::floor(uv.y() + 0.5);
-        if (!(u >= 0.0 && w >= 0.0 && u < depth.width && w < depth.height)) continue;
-        in_view(i);
-        const std::size_t pixel =
-            static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
-        if (p_C.z() <= depth.centre_depth[pixel]) seen(i);
-      }
-    }
-  }
+  ForEachVoxelCentre(g, pinhole, [&](std::uint32_t i, const Vector3d& p_C) {
+    if (skip(i) || p_C.z() <= 0.0) return;
+    const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
+    const double u = std::floor(uv.x() + 0.5);
+    const double w = std::floor(uv.y() + 0.5);
+    if (!(u >= 0.0 && w >= 0.0 && u < depth.width && w < depth.height)) return;
+    in_view(i);
+    const std::size_t pixel =
+        static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
+    if (p_C.z() <= depth.centre_depth[pixel]) seen(i);
+  });
 }
 
 }  // namespace
@@ -342,25 +348,20 @@ std::vector<std::uint8_t> OutOfView(const VoxelGrid& g,
   const double r = std::sqrt(3.0) * g.voxel_m();
   for (const geometry::CameraModel& camera : cameras) {
     const geometry::CameraModel pinhole = camera.Pinhole();
-    const double f = std::max(pinhole.K(0, 0), pinhole.K(1, 1));
-    const Vector3d step = pinhole.R_CW.col(0) * g.voxel_m();
-    for (int z = 0; z < g.nz(); ++z) {
-      for (int y = 0; y < g.ny(); ++y) {
-        Vector3d p_C = pinhole.ToCamera(g.Centre(0, y, z));
-        for (int x = 0; x < g.nx(); ++x, p_C += step) {
-          const std::uint32_t i = g.Index(x, y, z);
-          if (out[i] == 0 || p_C.z() <= 2.0 * r) continue;
-          // The ball's image lies within this many pixels of the centre's
-          // (its angular radius asin(r / d) <= r / (z - r) in either image axis).
-          const double margin = f * r / (p_C.z() - r);
-          const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
-          if (uv.x() - margin >= -0.5 && uv.y() - margin >= -0.5 &&
-              uv.x() + margin <= camera.width - 0.5 && uv.y() + margin <= camera.height - 0.5) {
-            out[i] = 0;
-          }
-        }
+    ForEachVoxelCentre(g, pinhole, [&](std::uint32_t i, const Vector3d& p_C) {
+      if (out[i] == 0 || p_C.z() <= 2.0 * r) return;
+      // A point p_C + d, |d| <= r, projects within f r (1 + |x / z|) / (z - r)
+      // pixels of p_C's image along u (from the derivative of f x / z), and
+      // likewise along v.
+      const double a = r / (p_C.z() - r);
+      const double margin_u = pinhole.K(0, 0) * a * (1.0 + std::abs(p_C.x() / p_C.z()));
+      const double margin_v = pinhole.K(1, 1) * a * (1.0 + std::abs(p_C.y() / p_C.z()));
+      const Eigen::Vector2d uv = pinhole.ProjectPinholeC(p_C);
+      if (uv.x() - margin_u >= -0.5 && uv.y() - margin_v >= -0.5 &&
+          uv.x() + margin_u <= camera.width - 0.5 && uv.y() + margin_v <= camera.height - 0.5) {
+        out[i] = 0;
       }
-    }
+    });
   }
   return out;
 }

@@ -201,9 +201,9 @@ TEST(StaticVoxelsTest, KnownOccludedAndFree) {
   EXPECT_EQ(v.out_of_view[index({2.0, 2.0, 1.5})], 0);
   EXPECT_EQ(v.out_of_view[index({2.0, 2.0, 0.4})], 0);  // In view, behind the top.
   // Every voxel whose centre is in view is out of view for OutOfView only
-  // near the image's border: within one voxel diagonal's image of it.
+  // near the image's border: within the image of a ball of one voxel diagonal
+  // around it (f r (1 + |x / z|) / (z - r) pixels along u, likewise along v).
   const geometry::CameraModel cam = cell.scene.cameras[0].Pinhole();
-  const double f = cam.K(0, 0);
   const double r = std::sqrt(3.0) * cell.grid.voxel_m();
   int near_border = 0, inside = 0;
   for (std::uint32_t i = 0; i < cell.grid.size(); ++i) {
@@ -211,11 +211,14 @@ TEST(StaticVoxelsTest, KnownOccludedAndFree) {
     const Vector3d p_C = cam.ToCamera(cell.grid.Centre(c.x(), c.y(), c.z()));
     if (p_C.z() <= 0.0) continue;
     const Eigen::Vector2d uv = cam.ProjectPinholeC(p_C);
-    const double border =
-        std::min({uv.x() + 0.5, uv.y() + 0.5, cam.width - 0.5 - uv.x(), cam.height - 0.5 - uv.y()});
-    if (border < 0.0) {
+    const double border_u = std::min(uv.x() + 0.5, cam.width - 0.5 - uv.x());
+    const double border_v = std::min(uv.y() + 0.5, cam.height - 0.5 - uv.y());
+    const double a = 1.01 * r / (p_C.z() - r);
+    if (border_u < 0.0 || border_v < 0.0) {
       EXPECT_EQ(v.out_of_view[i], 1) << i;  // The only camera: out of its view.
-    } else if (border > 1.01 * f * r / (p_C.z() - r) && p_C.z() > 2.0 * r) {
+    } else if (p_C.z() > 2.0 * r &&
+               border_u > cam.K(0, 0) * a * (1.0 + std::abs(p_C.x() / p_C.z())) &&
+               border_v > cam.K(1, 1) * a * (1.0 + std::abs(p_C.y() / p_C.z()))) {
       EXPECT_EQ(v.out_of_view[i], 0) << i;
       ++inside;
     } else {
