@@ -523,6 +523,7 @@ EllipsoidCounts CountVoxels(const VoxelMap& map, const Ellipsoid& ellipsoid,
 }
 
 int FloorLayerOf(const VoxelMap& map, const Ellipsoid& e, double reach_m) {
+  if (!(reach_m > 0.0)) return 0;
   return map.SupportLayer(e.centre_W, e.centre_W.z() - e.half_axes_m.z() + reach_m);
 }
 

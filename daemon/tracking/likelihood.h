@@ -110,7 +110,7 @@ enum class SumAxis { kAuto, kX, kZ, kXScalar, kZScalar };
 /// centre (VoxelMap::SupportLayer) when that lies at most reach_m above the
 /// ellipsoid's bottom (it stands on it), else 0 (the grid's bottom: a person
 /// standing beside a low obstacle, the centre above it, keeps the evidence
-/// of the legs beside it).
+/// of the legs beside it). reach_m <= 0: always 0.
 [[nodiscard]] int FloorLayerOf(const VoxelMap& map, const Ellipsoid& ellipsoid, double reach_m);
 
 /// Appends the indices of the voxels of `grid` whose centres lie inside the

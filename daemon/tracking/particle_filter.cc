@@ -125,8 +125,7 @@ void ParticleFilter::Step(double dt_s, const VoxelMap& map, const LikelihoodWeig
   double best = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
     const Ellipsoid& e = particles_[i];
-    const int floor_layer =
-        options_.support_reach_m > 0.0 ? FloorLayerOf(map, e, options_.support_reach_m) : 0;
+    const int floor_layer = FloorLayerOf(map, e, options_.support_reach_m);
     const double score = Score(CountVoxels(map, e, own_region, SumAxis::kAuto, floor_layer), w);
     weights_[i] = std::max(score, 0.0);
     best = std::max(best, weights_[i]);

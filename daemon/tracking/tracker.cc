@@ -300,9 +300,9 @@ void Tracker::Step(std::int64_t stamp_ns, bool births) {
 
 void Tracker::Assess(Slot* s, double dt_s) {
   const Ellipsoid& e = s->filter->estimate().ellipsoid;
-  const double reach = s->filter->options().support_reach_m;
-  const EllipsoidCounts n = CountVoxels(map_, e, s->region, SumAxis::kAuto,
-                                        reach > 0.0 ? FloorLayerOf(map_, e, reach) : 0);
+  const EllipsoidCounts n =
+      CountVoxels(map_, e, s->region, SumAxis::kAuto,
+                  FloorLayerOf(map_, e, s->filter->options().support_reach_m));
   const bool supported =
       n.unknown * map_.grid().voxel_volume_m3() >= options_.support_min_volume_m3 && n.unknown > 0;
   const int total = n.Total();

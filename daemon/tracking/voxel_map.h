@@ -93,11 +93,11 @@ class VoxelMap {
   /// OCCLUDED voxels allowed; those stay as they are: occupancy where no
   /// camera sees the voxel's centre is what the reconstruction could not
   /// certify free, not a camera's evidence of a person, and scores as the
-  /// space a person may hide in). Voxels out of every camera's view stay
-  /// kFree for the same reason: the reconstruction cannot carve them (it
-  /// reports them occupied when they are in the bounds), and as UNKNOWN they
-  /// would draw the ellipsoid of a person whose head nears the top of the
-  /// views up into them. Precondition: every index < grid().size().
+  /// space a person may hide in). Voxels out of every camera's view (with
+  /// OutOfView's margin) stay kFree for the same reason: the reconstruction
+  /// cannot carve them, and as UNKNOWN they would draw the ellipsoid of a
+  /// person whose head nears the top of the views up into them. Precondition: every index <
+  /// grid().size().
   void SetUnknown(std::span<const std::uint32_t> indices);
 
   /// Replaces the UNKNOWN set by every voxel that overlaps (with positive
