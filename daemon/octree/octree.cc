@@ -650,12 +650,7 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   std::atomic<std::int64_t> spent{0};
   auto run_pass = [&](Updater::Pass pass, int split_limit) {
     Updater shared(*this, masks, control, pass, split_limit, spent);
-    // A different first root every update: roots an abort leaves unrefined
-    // are not the same ones every time.
-    const int rotation = 0;
-    auto run = [&](int r, int worker) {
-      shared.UpdateRoot((r + rotation) % kNumRoots, scratch_[worker]);
-    };
+    auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
     pool_->Run(kNumRoots, run);
     return shared.aborted();
   };

@@ -106,6 +106,20 @@ VoxelMap RandomMap(const VoxelGrid& g, std::uint64_t seed) {
   return map;
 }
 
+// A random ellipsoid around and partly outside the grid of the random tests
+// ((-0.3, 0.2, 0) .. (1.1, 1.3, 0.9)), below its floor too.
+Ellipsoid RandomEllipsoid(std::mt19937_64* rng) {
+  std::uniform_real_distribution<double> cx(-0.6, 1.4), cy(-0.1, 1.6), cz(-0.3, 1.2);
+  std::uniform_real_distribution<double> half_axis(0.02, 0.6);
+  const Vector3d centre(cx(*rng), cy(*rng), cz(*rng));
+  const Vector3d half(half_axis(*rng), half_axis(*rng), half_axis(*rng));
+  return {centre, half};
+}
+
+// Every way CountVoxels sums.
+constexpr SumAxis kAllAxes[] = {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar,
+                                SumAxis::kZScalar};
+
 // A 3 x 3 x 3 grid of 0.1 m voxels and a ball reaching the six face
 // neighbours of the centre voxel (distance 0.1 <= 0.11) but not the edge
 // neighbours (0.141): seven voxels, states set by hand.
@@ -142,13 +156,10 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
   const VoxelGrid g({Vector3d(-0.3, 0.2, 0.0), Vector3d(1.1, 1.3, 0.9)}, 0.05);
   const VoxelMap map = RandomMap(g, 3);
   std::mt19937_64 rng(17);
-  std::uniform_real_distribution<double> cx(-0.6, 1.4), cy(-0.1, 1.6), cz(-0.3, 1.2);
-  std::uniform_real_distribution<double> half_axis(0.02, 0.6);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   const LikelihoodWeights w{1.0, 0.1, -5.0, -0.1, -3.0};
   for (int trial = 0; trial < 400; ++trial) {
-    const Ellipsoid e{Vector3d(cx(rng), cy(rng), cz(rng)),
-                      Vector3d(half_axis(rng), half_axis(rng), half_axis(rng))};
+    const Ellipsoid e = RandomEllipsoid(&rng);
     std::vector<HalfSpace> region;
     const int planes = trial % 4;
     for (int k = 0; k < planes; ++k) {
@@ -162,8 +173,7 @@ TEST(LikelihoodTest, RandomEllipsoidsMatchBruteForce) {
     SCOPED_TRACE(trial);
     const EllipsoidCounts brute = BruteCounts(map, e, region);
     const double brute_score = BruteScore(map, e, region, w);
-    for (const SumAxis axis :
-         {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar, SumAxis::kZScalar}) {
+    for (const SumAxis axis : kAllAxes) {
       SCOPED_TRACE(static_cast<int>(axis));
       const EllipsoidCounts fast = CountVoxels(map, e, region, axis);
       ExpectSameCounts(fast, brute);
@@ -178,20 +188,17 @@ TEST(LikelihoodTest, RaisedFloorMatchesBruteForce) {
   const VoxelGrid g({Vector3d(-0.3, 0.2, 0.0), Vector3d(1.1, 1.3, 0.9)}, 0.05);
   const VoxelMap map = RandomMap(g, 11);
   std::mt19937_64 rng(23);
-  std::uniform_real_distribution<double> cx(-0.6, 1.4), cy(-0.1, 1.6), cz(-0.3, 1.2);
-  std::uniform_real_distribution<double> half_axis(0.02, 0.6);
   std::uniform_int_distribution<int> floor_layer(0, g.nz());
   for (int trial = 0; trial < 300; ++trial) {
-    const Ellipsoid e{Vector3d(cx(rng), cy(rng), cz(rng)),
-                      Vector3d(half_axis(rng), half_axis(rng), half_axis(rng))};
+    const Ellipsoid e = RandomEllipsoid(&rng);
     const int floor = floor_layer(rng);
     std::vector<HalfSpace> region;
-    if (trial % 2 == 1)
+    if (trial % 2 == 1) {
       region.push_back(HalfSpace::NearerTo(e.centre_W, e.centre_W + Vector3d(0.2, 0.1, -0.1)));
+    }
     SCOPED_TRACE(testing::Message() << "trial " << trial << " floor " << floor);
     const EllipsoidCounts brute = BruteCounts(map, e, region, floor);
-    for (const SumAxis axis :
-         {SumAxis::kAuto, SumAxis::kX, SumAxis::kZ, SumAxis::kXScalar, SumAxis::kZScalar}) {
+    for (const SumAxis axis : kAllAxes) {
       SCOPED_TRACE(static_cast<int>(axis));
       ExpectSameCounts(CountVoxels(map, e, region, axis, floor), brute);
     }
