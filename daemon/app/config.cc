@@ -444,6 +444,12 @@ const Field<TrackingConfig> kTrackingFields[] = {
                 "this far above the ellipsoid's bottom: a person standing on a table is tracked "
                 "at her height, not pushed up by the table top. 0: the cell's floor only.",
      .limits = {0, kInf}},
+    {.key = "posture_noise_m_per_sqrt_s",
+     .member = &TrackingConfig::posture_noise_m_per_sqrt_s,
+     .meaning = "Diffusion of a particle's top with its bottom fixed (m per square root of a "
+                "second): how fast the filter follows a person crouching, lying down or getting "
+                "up. 0: the centre and the vertical half-axis diffuse independently only.",
+     .limits = {0, kInf}},
     {.key = "collision_radius_m",
      .member = &TrackingConfig::collision_radius_m,
      .meaning = "Radius of the capsule a particle sweeps from its previous centre; particles "
@@ -871,6 +877,7 @@ constexpr std::pair<const char*, const char*> kTrackerOptionKeys[] = {
     {"likelihood.free", "epsilon_free"},
     {"likelihood.below_floor", "below_floor_weight"},
     {"filter.support_reach_m", "support_reach_m"},
+    {"filter.posture_noise_m_per_sqrt_s", "posture_noise_m_per_sqrt_s"},
     {"filter.collision_radius_m", "collision_radius_m"},
     {"birth_min_volume_m3", "birth_min_volume_m3"},
     {"birth_min_height_m", "birth_min_height_m"},

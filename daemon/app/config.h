@@ -168,6 +168,8 @@ struct TrackingConfig {
   double below_floor_weight = -0.1;  ///< Of lattice positions below the cell's floor.
   double support_reach_m = 0.25;     ///< An obstacle top this near the bottom is the floor.
   double collision_radius_m = 0.2;   ///< Capsule swept by a particle's move.
+  /// Diffusion of a particle's top with its bottom fixed (m / sqrt(s)).
+  double posture_noise_m_per_sqrt_s = 0.3;
   double birth_min_volume_m3 = 0.06;
   double birth_min_height_m = 1.0;
   double birth_max_skew_ms = 20.0;

@@ -23,12 +23,8 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   if (config.tracking.enabled) {
     // Tracks start only from updates refined to the tracking voxel
     // (pipeline::WholeForBirths): the coarse passes reach that level first.
-    int level = octree::Octree::kRootLevel;
-    while (level < config.octree.depth &&
-           pipeline::RefinedCellSize(config.cell.bounds, level) > config.tracking.voxel_m) {
-      ++level;
-    }
-    options.key_level = level;
+    options.key_level = pipeline::TrackingKeyLevel(config.cell.bounds, config.octree.depth,
+                                                   config.tracking.voxel_m);
   }
   options.octree_threads = config.threads.octree;
   options.rate_hz = config.timing.rate_hz;

@@ -47,6 +47,7 @@ tracking::TrackerOptions MakeTrackerOptions(const TrackingConfig& config, double
   o.likelihood.free = config.epsilon_free;
   o.likelihood.below_floor = config.below_floor_weight;
   o.filter.support_reach_m = config.support_reach_m;
+  o.filter.posture_noise_m_per_sqrt_s = config.posture_noise_m_per_sqrt_s;
   o.filter.collision_radius_m = config.collision_radius_m;
   o.birth_min_volume_m3 = config.birth_min_volume_m3;
   o.birth_min_height_m = config.birth_min_height_m;

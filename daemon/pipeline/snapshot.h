@@ -98,6 +98,15 @@ struct OccupancySnapshot {
   return level > 0 ? std::ldexp((bounds.max - bounds.min).maxCoeff(), -level) : 0.0;
 }
 
+/// The coarsest level (at most `depth`) whose cells are no larger than
+/// `voxel_m`: the octree's key level when tracking with such voxels, since
+/// births need an update refined that far (WholeForBirths).
+[[nodiscard]] inline int TrackingKeyLevel(const common::Box3& bounds, int depth, double voxel_m) {
+  int level = 1;
+  while (level < depth && RefinedCellSize(bounds, level) > voxel_m) ++level;
+  return level;
+}
+
 /// Whether tracking may use the snapshot: complete, or aborted after coarse
 /// first refined it everywhere to cells of at most two tracking voxels (what
 /// it lists beyond a complete update then lies within such cells).

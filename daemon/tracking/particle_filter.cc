@@ -90,6 +90,7 @@ void ParticleFilter::Step(double dt_s, const VoxelMap& map, const LikelihoodWeig
   const double s_xy = options_.position_noise_m_per_sqrt_s * sqrt_dt;
   const double s_z = options_.vertical_noise_m_per_sqrt_s * sqrt_dt;
   const double s_axis = options_.axis_noise_m_per_sqrt_s * sqrt_dt;
+  const double s_posture = options_.posture_noise_m_per_sqrt_s * sqrt_dt;
   Vector3d drift = estimate_.velocity_W_mps * dt_s;
   if (!options_.vertical_drift) drift.z() = 0.0;
 
@@ -104,6 +105,13 @@ void ParticleFilter::Step(double dt_s, const VoxelMap& map, const LikelihoodWeig
     p.centre_W.z() += s_z * normal_(rng_);
     for (int a = 0; a < 3; ++a) p.half_axes_m[a] += s_axis * normal_(rng_);
     p.half_axes_m = ClampHalfAxes(options_, p.half_axes_m);
+    if (s_posture > 0.0) {
+      // The top moves, the bottom stays where it is (within the human sizes).
+      const double m_before = p.half_axes_m.z();
+      p.half_axes_m.z() += 0.5 * s_posture * normal_(rng_);
+      p.half_axes_m = ClampHalfAxes(options_, p.half_axes_m);
+      p.centre_W.z() += p.half_axes_m.z() - m_before;
+    }
     const bool hit =
         world.CapsuleHits(scratch_[i].centre_W, p.centre_W, options_.collision_radius_m);
     collided_[i] = hit ? 1 : 0;

@@ -29,6 +29,12 @@ struct ParticleFilterOptions {
   double vertical_noise_m_per_sqrt_s = 0.12;
   /// Diffusion of each half-axis, m / sqrt(s).
   double axis_noise_m_per_sqrt_s = 0.06;
+  /// Diffusion of the ellipsoid's top with its bottom fixed (centre z and
+  /// half-axis m move together by half of it), m / sqrt(s): a person
+  /// crouching, lying down or getting up changes height at up to 2 m/s while
+  /// the feet stay on the floor, which independent steps of the centre and
+  /// of the half-axis rarely propose together.
+  double posture_noise_m_per_sqrt_s = 0.3;
   /// Human sizes: half-axes k, l (x, y) and m (z) stay in these ranges. The
   /// horizontal minimum is not below collision_radius_m, so the swept capsule
   /// stays inside the space the particle's ellipsoid sweeps.

@@ -96,6 +96,8 @@ std::vector<OptionProblem> CheckOptions(const TrackerOptions& o) {
           "filter.vertical_noise_m_per_sqrt_s", "must be >= 0", &p);
   Require(f.axis_noise_m_per_sqrt_s >= 0.0 && Finite(f.axis_noise_m_per_sqrt_s),
           "filter.axis_noise_m_per_sqrt_s", "must be >= 0", &p);
+  Require(f.posture_noise_m_per_sqrt_s >= 0.0 && Finite(f.posture_noise_m_per_sqrt_s),
+          "filter.posture_noise_m_per_sqrt_s", "must be >= 0", &p);
   Require(f.min_half_axis_xy_m > 0.0 && f.min_half_axis_xy_m <= f.max_half_axis_xy_m &&
               Finite(f.max_half_axis_xy_m),
           "filter.min_half_axis_xy_m", "must be > 0 and <= filter.max_half_axis_xy_m", &p);

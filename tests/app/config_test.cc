@@ -461,6 +461,8 @@ TEST(ConfigTrackingTest, DefaultsAreTheTrackersOwn) {
   EXPECT_EQ(o.likelihood.free, d.likelihood.free);
   EXPECT_EQ(o.likelihood.below_floor, d.likelihood.below_floor);
   EXPECT_EQ(o.filter.collision_radius_m, d.filter.collision_radius_m);
+  EXPECT_EQ(o.filter.support_reach_m, d.filter.support_reach_m);
+  EXPECT_EQ(o.filter.posture_noise_m_per_sqrt_s, d.filter.posture_noise_m_per_sqrt_s);
   EXPECT_EQ(o.birth_min_volume_m3, d.birth_min_volume_m3);
   EXPECT_EQ(o.death_timeout_s, d.death_timeout_s);
   EXPECT_EQ(o.occluded_death_timeout_s, d.occluded_death_timeout_s);
@@ -470,7 +472,7 @@ TEST(ConfigTrackingTest, DefaultsAreTheTrackersOwn) {
   EXPECT_TRUE(tracking::CheckOptions(o).empty());
 }
 
-/// kMinimal with a tracking section setting every key; its keys are on lines 12 to 26.
+/// kMinimal with a tracking section setting every key; its keys are on lines 12 to 28.
 const std::string kTracking = std::string(kMinimal) + R"(tracking:
   enabled: false
   voxel_m: 0.05
@@ -487,6 +489,8 @@ const std::string kTracking = std::string(kMinimal) + R"(tracking:
   occluded_death_timeout_s: 20
   reacquire_radius_m: 0.7
   reacquire_speed_mps: 1
+  support_reach_m: 0.3
+  posture_noise_m_per_sqrt_s: 0.2
 )";
 
 TEST(ConfigTrackingTest, EveryKeyReadsBackAndMaps) {
@@ -507,6 +511,8 @@ TEST(ConfigTrackingTest, EveryKeyReadsBackAndMaps) {
   EXPECT_EQ(o.occluded_death_timeout_s, 20.0);
   EXPECT_EQ(o.reacquire_radius_m, 0.7);
   EXPECT_EQ(o.reacquire_speed_mps, 1.0);
+  EXPECT_EQ(o.filter.support_reach_m, 0.3);
+  EXPECT_EQ(o.filter.posture_noise_m_per_sqrt_s, 0.2);
   EXPECT_DOUBLE_EQ(o.first_dt_s, 0.05);
 }
 
@@ -528,6 +534,8 @@ TEST(ConfigTrackingTest, EachMistakeNamesFileLineAndKey) {
        "must be >= 0"},
       {"reacquire_speed_mps: 1", "reacquire_speed: 1", 26, "tracking",
        "unknown key 'reacquire_speed'"},
+      {"posture_noise_m_per_sqrt_s: 0.2", "posture_noise_m_per_sqrt_s: -0.1", 28,
+       "tracking.posture_noise_m_per_sqrt_s", "must be >= 0"},
   };
   for (const Mistake& m : mistakes) {
     const std::string error = ErrorOf(Replace(kTracking, m.from, m.to));
