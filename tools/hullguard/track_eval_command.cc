@@ -385,12 +385,12 @@ int RunTrackEval(const TrackEvalFlags& f) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - build_start)
           .count();
 
-  SceneEngine engine(std::move(loaded),
-                     {.depth = f.depth,
-                      .threads = f.threads,
-                      .coarse_first_depth = f.coarse_first_depth,
-                      // As the daemon: a coarse pass stops at the tracking voxel's level.
-                      .key_level = pipeline::TrackingKeyLevel(loaded.bounds, f.depth, f.voxel_m)});
+  // As the daemon: a coarse pass stops at the tracking voxel's level.
+  const int key_level = pipeline::TrackingKeyLevel(loaded.bounds, f.depth, f.voxel_m);
+  SceneEngine engine(std::move(loaded), {.depth = f.depth,
+                                         .threads = f.threads,
+                                         .coarse_first_depth = f.coarse_first_depth,
+                                         .key_level = key_level});
   const sim::Scene& s = engine.scene();
   std::vector<Vector3d> distractors;
   for (const sim::Solid& o : s.foreground_objects) {
