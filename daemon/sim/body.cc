@@ -838,16 +838,22 @@ BodyState EvaluatePerson(const Person& person, double t_s) {
   return state;
 }
 
-void ComputeBoundingEllipsoid(BodyState* state) {
-  Vector3d lo = Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Vector3d hi = -lo;
-  for (const BodyCapsule& c : state->parts) {
+common::Box3 BodyBox(const BodyState& state) {
+  common::Box3 box;
+  box.min = Vector3d::Constant(std::numeric_limits<double>::infinity());
+  box.max = -box.min;
+  for (const BodyCapsule& c : state.parts) {
     const Vector3d r = Vector3d::Constant(c.radius_m);
-    lo = lo.cwiseMin(c.a_W.cwiseMin(c.b_W) - r);
-    hi = hi.cwiseMax(c.a_W.cwiseMax(c.b_W) + r);
+    box.min = box.min.cwiseMin(c.a_W.cwiseMin(c.b_W) - r);
+    box.max = box.max.cwiseMax(c.a_W.cwiseMax(c.b_W) + r);
   }
-  const Vector3d centre = 0.5 * (lo + hi);
-  const Vector3d e = (0.5 * (hi - lo)).cwiseMax(1e-9);
+  return box;
+}
+
+void ComputeBoundingEllipsoid(BodyState* state) {
+  const common::Box3 body_box = BodyBox(*state);
+  const Vector3d centre = 0.5 * (body_box.min + body_box.max);
+  const Vector3d e = (0.5 * (body_box.max - body_box.min)).cwiseMax(1e-9);
   const double e_min = e.minCoeff();
   // A capsule is the convex hull of its two end balls and the normalised
   // distance |(p - c) ./ e| is convex, so its maximum over the capsule is its

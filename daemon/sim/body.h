@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include "common/box.h"
 #include "sim/solids.h"
 
 namespace hg::sim {
@@ -99,6 +100,9 @@ struct BodyState {
 
 /// Colour of a part's surface for `person` (shirt, trousers, skin, shoes).
 [[nodiscard]] Rgb PartColour(const Person& person, BodyPart part);
+
+/// The axis-aligned bounding box of every part (the body box; centre_W is its centre).
+[[nodiscard]] common::Box3 BodyBox(const BodyState& state);
 
 /// Fills centre_W and ellipsoid_half_axes_m from the parts.
 void ComputeBoundingEllipsoid(BodyState* state);

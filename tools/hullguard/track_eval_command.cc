@@ -9,7 +9,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -320,18 +319,6 @@ const tracking::MotMatch* MatchOf(const tracking::MotFrame& m, std::uint32_t obj
   return it == m.matches.end() ? nullptr : &*it;
 }
 
-/// Half-extents of the axis-aligned box of every body part.
-Vector3d BodyBoxHalfExtents(const sim::BodyState& body) {
-  Vector3d lo = Vector3d::Constant(std::numeric_limits<double>::infinity());
-  Vector3d hi = -lo;
-  for (const sim::BodyCapsule& c : body.parts) {
-    const Vector3d r = Vector3d::Constant(c.radius_m);
-    lo = lo.cwiseMin(c.a_W.cwiseMin(c.b_W) - r);
-    hi = hi.cwiseMax(c.a_W.cwiseMax(c.b_W) + r);
-  }
-  return 0.5 * (hi - lo);
-}
-
 /// One frame of the --trace CSV: each person in the cell (truth: body-box
 /// centre and half-extents, the matched track and its distance, empty when
 /// missed), then each scored track (centre and half-axes).
@@ -463,7 +450,10 @@ int RunTrackEval(const TrackEvalFlags& f) {
       }
       objects.push_back({static_cast<std::uint32_t>(i + 1), body.centre_W});
       object_person.push_back(static_cast<int>(i));
-      if (trace) object_half.push_back(BodyBoxHalfExtents(body));
+      if (trace) {
+        const common::Box3 box = sim::BodyBox(body);
+        object_half.push_back(0.5 * (box.max - box.min));
+      }
       record.people.emplace_back(static_cast<int>(i), body.centre_W);
       ++people[i].frames;
     }
