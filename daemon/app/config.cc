@@ -192,6 +192,18 @@ const Field<TimingConfig> kTimingFields[] = {
      .member = &TimingConfig::camera_timeout_ms,
      .meaning = "A camera without a frame for this long counts as seeing nothing.",
      .limits = {1, kInf}},
+    {.key = "align_to_frames",
+     .member = &TimingConfig::align_to_frames,
+     .meaning = "Phase-lock the cycle to the cameras' frames: the period stays 1000 / rate_hz, "
+                "but its phase moves (at most 2 ms per cycle) until each cycle starts just after "
+                "the last frame of a capture instant is ready, instead of at the phase the daemon "
+                "happened to start with, which can cost up to a period of latency and skew. "
+                "Cameras at another rate than the cycle leave it as it is."},
+    {.key = "align_margin_ms",
+     .member = &TimingConfig::align_margin_ms,
+     .meaning = "With align_to_frames: the cycle aims to start this long plus twice the measured "
+                "jitter after the last frame of a capture instant is usually ready.",
+     .limits = {0, kInf}},
 };
 
 const Field<ThreadsConfig> kThreadsFields[] = {

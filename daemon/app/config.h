@@ -40,9 +40,11 @@ struct MotionConfig {
 
 /// Fusion timing.
 struct TimingConfig {
-  double rate_hz = 30.0;        ///< Fusion rate.
-  double deadline_ms = 25.0;    ///< Anytime deadline of one octree update; < 1000 / rate_hz.
-  int camera_timeout_ms = 200;  ///< A camera silent this long is treated as seeing nothing.
+  double rate_hz = 30.0;         ///< Fusion rate.
+  double deadline_ms = 25.0;     ///< Anytime deadline of one octree update; < 1000 / rate_hz.
+  int camera_timeout_ms = 200;   ///< A camera silent this long is treated as seeing nothing.
+  bool align_to_frames = true;   ///< Phase-lock the cycle to the cameras' frames.
+  double align_margin_ms = 2.0;  ///< The cycle starts this long after a frame set is ready.
 };
 
 /// Thread counts.

@@ -1,6 +1,7 @@
 #include "pipeline/pipeline.h"
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <chrono>
 
@@ -8,6 +9,7 @@
 
 #include "octree/camera_view.h"
 #include "pipeline/black_box.h"
+#include "pipeline/cycle_phase.h"
 #include "silhouette/tile_dilation.h"
 
 namespace hg::pipeline {
@@ -133,6 +135,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     slot.mask.pixels.assign(mask->pixels.begin(), mask->pixels.end());
   }
   slot.stamp_ns = frame.stamp_ns;
+  slot.ready = SteadyClock::now();
   c.slot.Publish();
   c.frames.fetch_add(1, std::memory_order_relaxed);
 }
@@ -219,6 +222,11 @@ void Pipeline::FusionLoop() {
   const auto period = std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.rate_hz));
   SteadyClock::time_point next = SteadyClock::now();
   SteadyClock::time_point last_second = next;
+  CyclePhaseOptions phase_options;
+  phase_options.margin = std::chrono::nanoseconds(
+      static_cast<std::int64_t>(std::max(0.0, options_.align_margin_ms) * 1e6));
+  CyclePhase phase(period, phase_options);
+  std::array<CyclePhase::Duration, CyclePhase::kMaxCameras> ready_before_start{};
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(fusion_heartbeat_);
     std::this_thread::sleep_until(next);
@@ -240,6 +248,14 @@ void Pipeline::FusionLoop() {
     snapshot->health.cycle_ms = MsSince(cycle_start);
     latest_.store(snapshot, std::memory_order_release);
     if (consumer_) consumer_(snapshot);
+    if (options_.align_to_frames) {
+      std::size_t n = 0;
+      for (std::size_t i = 0; i < cameras_.size() && n < ready_before_start.size(); ++i) {
+        if (quadtree_ptrs_[i] == nullptr) continue;  // Delivers nothing this cycle.
+        ready_before_start[n++] = cycle_start - cameras_[i]->last_ready;
+      }
+      next += phase.Update(std::span(ready_before_start.data(), n));
+    }
   }
 }
 
@@ -266,6 +282,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
       c.current = slot;
       c.fresh = true;
       c.last_stamp_ns = slot->stamp_ns;
+      c.last_ready = slot->ready;
       c.seen = true;
     }
     const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;

@@ -4,6 +4,7 @@
 /// at a fixed rate, and immutable occupancy snapshots for the consumers.
 
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <thread>
@@ -35,6 +36,11 @@ struct PipelineOptions {
   int octree_threads = 2;
   double rate_hz = 30.0;
   double deadline_ms = 25.0;
+  /// Phase-lock the fusion cycle to the cameras' frames (CyclePhase): each
+  /// cycle starts about `align_margin_ms` after the last frame of a capture
+  /// instant is ready. Off: the cycle keeps the phase it started with.
+  bool align_to_frames = true;
+  double align_margin_ms = 2.0;
   /// Depth of the published grid (<= depth): each published cell is occupied
   /// when any leaf inside it is, so coarser publishing stays conservative.
   int publish_depth = 7;
@@ -119,6 +125,7 @@ class Pipeline {
   struct Slot {
     common::ImageU8 mask;  // Pinhole (undistorted) mask.
     std::int64_t stamp_ns = 0;
+    std::chrono::steady_clock::time_point ready;  // When it was published.
   };
   struct CameraRuntime {
     geometry::CameraModel model;
@@ -141,8 +148,9 @@ class Pipeline {
     bool fresh = false;             // `current` not built into the quadtree yet.
     int built_radius_tiles = 0;     // Dilation the quadtree was built with.
     std::int64_t last_stamp_ns = 0;
-    bool seen = false;      // A frame has arrived since start.
-    bool was_live = false;  // Used in the previous cycle.
+    std::chrono::steady_clock::time_point last_ready;  // `ready` of the newest frame taken.
+    bool seen = false;                                 // A frame has arrived since start.
+    bool was_live = false;                             // Used in the previous cycle.
     std::uint64_t frames_at_last_second = 0;
     double fps = 0.0;
     CameraRuntime(geometry::CameraModel m, std::unique_ptr<capture::CameraSource> s, int timeout)

@@ -27,7 +27,7 @@ const std::string kConfigDir = kSourceDir + "/config";
 const char* const kFull = R"(cell:
   bounds: {min: [-1, -2, 0], max: [3, 4, 2.5]}
 octree: {depth: 8, boundary_coarsening: 2, knowledge_filter_m3: 0.002, publish_depth: 6}
-timing: {rate_hz: 20, deadline_ms: 40, camera_timeout_ms: 150}
+timing: {rate_hz: 20, deadline_ms: 40, camera_timeout_ms: 150, align_to_frames: false, align_margin_ms: 3}
 threads: {octree: 4, silhouette_workers: 3}
 cameras:
   - name: cam0
@@ -133,6 +133,8 @@ TEST(ConfigTest, DefaultsOfAMinimalFile) {
   EXPECT_EQ(c.timing.rate_hz, 30.0);
   EXPECT_EQ(c.timing.deadline_ms, 25.0);
   EXPECT_EQ(c.timing.camera_timeout_ms, 200);
+  EXPECT_TRUE(c.timing.align_to_frames);
+  EXPECT_EQ(c.timing.align_margin_ms, 2.0);
   EXPECT_EQ(c.threads.octree, 2);
   EXPECT_EQ(c.threads.silhouette_workers, 0);
   EXPECT_EQ(c.background.learn_frames, 30);
@@ -165,6 +167,10 @@ TEST(ConfigTest, EverySectionReadsBack) {
   EXPECT_EQ(c.timing.rate_hz, 20.0);
   EXPECT_EQ(c.timing.deadline_ms, 40.0);
   EXPECT_EQ(c.timing.camera_timeout_ms, 150);
+  EXPECT_FALSE(c.timing.align_to_frames);
+  EXPECT_EQ(c.timing.align_margin_ms, 3.0);
+  EXPECT_FALSE(MakePipelineOptions(c).align_to_frames);
+  EXPECT_EQ(MakePipelineOptions(c).align_margin_ms, 3.0);
   EXPECT_EQ(c.threads.octree, 4);
   EXPECT_EQ(c.threads.silhouette_workers, 3);
   EXPECT_EQ(c.background.learn_frames, 50);
@@ -275,6 +281,8 @@ const Mistake kMistakes[] = {
     {"deadline_ms: 40", "deadline_ms: 60", 4, "timing.deadline_ms", "1000 / rate_hz"},
     {"rate_hz: 20", "rate_hz: fast", 4, "timing.rate_hz", "expected a number"},
     {"camera_timeout_ms: 150", "camera_timeout_ms: 0", 4, "timing.camera_timeout_ms", ">= 1"},
+    {"align_margin_ms: 3", "align_margin_ms: -1", 4, "timing.align_margin_ms", ">= 0"},
+    {"align_to_frames: false", "align_to_frames: maybe", 4, "timing.align_to_frames", "expected"},
     {"octree: 4", "octree: 0", 5, "threads.octree", "must be in 1 .. 64"},
     {"width: 1920", "width: wide", 8, "cameras[0].width", "positive integer"},
     {"K: [1083.5, 0, 959.5, 0, 1083.5, 539.5, 0, 0, 1]", "K: [1, 2, 3]", 10, "cameras[0].K",
