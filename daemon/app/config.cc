@@ -213,7 +213,10 @@ const Field<ThreadsConfig> kThreadsFields[] = {
      .limits = {1, 64}},
     {.key = "silhouette_workers",
      .member = &ThreadsConfig::silhouette_workers,
-     .meaning = "Silhouette worker threads; 0 = one per camera.",
+     .meaning = "Threads that turn frames into silhouettes (background model, undistortion); "
+                "0 = one per camera. N > 0 shares N threads among all cameras, each taking the "
+                "cameras' newest frames in turn; a camera whose frames come faster than they are "
+                "processed skips to its newest (counted as drops).",
      .limits = {0, 64}},
 };
 

@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <chrono>
+#include <string>
 
 #include <opencv2/imgproc.hpp>
 
@@ -49,6 +50,28 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
     }
     cameras_.push_back(std::move(runtime));
   }
+  // Silhouette workers: one per camera, or N shared by all, waiting on one signal.
+  const int num_cameras = static_cast<int>(cameras_.size());
+  const bool shared = options_.silhouette_workers > 0;
+  const int num_workers = shared ? options_.silhouette_workers : num_cameras;
+  const int num_signals = shared ? 1 : num_cameras;
+  signals_ = std::make_unique<std::atomic<std::uint32_t>[]>(static_cast<std::size_t>(num_signals));
+  for (int c = 0; c < num_cameras; ++c) cameras_[c]->signal = &signals_[shared ? 0 : c];
+  workers_.resize(static_cast<std::size_t>(num_workers));
+  for (int w = 0; w < num_workers; ++w) {
+    SilhouetteWorker& worker = workers_[w];
+    worker.signal = &signals_[shared ? 0 : w];
+    if (shared) {
+      for (int c = 0; c < num_cameras; ++c) worker.cameras.push_back((w + c) % num_cameras);
+    } else {
+      worker.cameras.push_back(w);
+    }
+    if (heartbeats_ != nullptr) {
+      worker.heartbeat = heartbeats_->Register(
+          shared ? "silhouette " + std::to_string(w)
+                 : std::string("silhouette ").append(cameras_[w]->model.name));
+    }
+  }
   if (heartbeats_ != nullptr) fusion_heartbeat_ = heartbeats_->Register("fusion");
   quadtree_ptrs_.resize(cameras_.size(), nullptr);
   octree::OctreeConfig tree_config{options_.bounds, options_.depth, options_.octree_threads,
@@ -68,6 +91,9 @@ void Pipeline::Start() {
   for (std::size_t c = 0; c < cameras_.size(); ++c) {
     threads_.emplace_back([this, c] { CaptureLoop(static_cast<int>(c)); });
   }
+  for (std::size_t w = 0; w < workers_.size(); ++w) {
+    threads_.emplace_back([this, w] { SilhouetteLoop(static_cast<int>(w)); });
+  }
   threads_.emplace_back([this] { FusionLoop(); });
 }
 
@@ -75,6 +101,10 @@ void Pipeline::Stop() {
   stop_.store(true);
   for (auto& camera : cameras_) {
     if (camera->source) camera->source->Stop();
+  }
+  for (SilhouetteWorker& worker : workers_) {
+    worker.signal->fetch_add(1, std::memory_order_release);
+    worker.signal->notify_all();
   }
   for (std::thread& t : threads_) {
     if (t.joinable()) t.join();
@@ -84,13 +114,39 @@ void Pipeline::Stop() {
 
 void Pipeline::CaptureLoop(int camera) {
   CameraRuntime& c = *cameras_[camera];
-  capture::Frame frame;
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
-    if (!c.source->Next(&frame, std::chrono::milliseconds(50))) continue;
-    if (black_box_ != nullptr) black_box_->Push(camera, frame);
-    // The frame is the source's to refill: a mask may be handed over whole.
-    ProcessFrame(camera, frame, &frame.grey);
+    capture::Frame& frame = c.raw.BeginWrite();
+    if (c.source->Next(&frame, std::chrono::milliseconds(50))) {
+      if (black_box_ != nullptr) black_box_->Push(camera, frame);
+      c.raw.Publish();
+    }
+    // Every loop, frame or not: a waiting worker wakes at least every 50 ms
+    // to beat its heartbeat.
+    c.signal->fetch_add(1, std::memory_order_release);
+    c.signal->notify_all();
+  }
+}
+
+bool Pipeline::TakeAndProcess(int camera) {
+  CameraRuntime& c = *cameras_[camera];
+  if (c.busy.exchange(true, std::memory_order_acquire)) return false;
+  capture::Frame* frame = c.raw.TakeNewest();
+  // The frame stays this worker's until its next take: a mask may be handed
+  // over whole (the capture thread refills another buffer meanwhile).
+  if (frame != nullptr) ProcessFrame(camera, *frame, &frame->grey);
+  c.busy.store(false, std::memory_order_release);
+  return frame != nullptr;
+}
+
+void Pipeline::SilhouetteLoop(int index) {
+  const SilhouetteWorker& worker = workers_[index];
+  while (!stop_.load(std::memory_order_relaxed)) {
+    if (heartbeats_ != nullptr) heartbeats_->Beat(worker.heartbeat);
+    const std::uint32_t seen = worker.signal->load(std::memory_order_acquire);
+    bool took = false;
+    for (int camera : worker.cameras) took = TakeAndProcess(camera) || took;
+    if (!took) worker.signal->wait(seen, std::memory_order_acquire);
   }
 }
 
@@ -305,7 +361,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
     h.fps = c.fps;
     h.frame_age_ms = age_ms;
     h.frames = frames;
-    h.drops = c.slot.drops();
+    h.drops = c.raw.drops() + c.slot.drops();
     h.corrupt =
         c.corrupt.load(std::memory_order_relaxed) + (c.source ? c.source->corrupt_frames() : 0);
     const capture::TransportStats transport =

@@ -41,6 +41,10 @@ struct PipelineOptions {
   /// instant is ready. Off: the cycle keeps the phase it started with.
   bool align_to_frames = true;
   double align_margin_ms = 2.0;
+  /// Silhouette worker threads (background model, undistortion): 0 gives
+  /// every camera its own; N > 0 shares N among all cameras, each taking the
+  /// cameras' newest frames in turn.
+  int silhouette_workers = 0;
   /// Depth of the published grid (<= depth): each published cell is occupied
   /// when any leaf inside it is, so coarser publishing stays conservative.
   int publish_depth = 7;
@@ -67,9 +71,12 @@ struct PipelineCamera {
   int timeout_ms = 200;  ///< Silent longer than this: the camera sees nothing.
 };
 
-/// Capture thread per camera: source -> conservative undistortion -> a
-/// latest-value slot (newest frame wins, overwritten frames counted as drops).
-/// Fusion thread every 1 / rate_hz: takes each camera's newest mask and builds
+/// Capture thread per camera: source -> a latest-value handoff of raw frames
+/// (newest frame wins, overwritten frames counted as drops) -> silhouette
+/// worker (one per camera, or a shared few): background model, conservative
+/// undistortion -> a latest-value slot of masks (again newest wins, drops
+/// counted). A slow silhouette step never holds up the capture: it skips to
+/// the newest frame. Fusion thread every 1 / rate_hz: takes each camera's newest mask and builds
 /// that camera's quadtree itself (so the changed flags are always relative to
 /// what the octree last saw), treats a camera silent for longer than its
 /// timeout as seeing nothing, updates the octree under the deadline, and
@@ -91,8 +98,9 @@ class Pipeline {
   using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;
 
   /// `heartbeats` (optional, must outlive the pipeline) gets one stage per
-  /// capture thread ("capture <camera>") and one for fusion ("fusion"), each
-  /// beaten every loop iteration.
+  /// capture thread ("capture <camera>"), one per silhouette worker
+  /// ("silhouette <camera>", or "silhouette <n>" when shared) and one for
+  /// fusion ("fusion"), each beaten every loop iteration.
   Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> cameras,
            const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer,
            common::Heartbeats* heartbeats = nullptr);
@@ -132,14 +140,18 @@ class Pipeline {
     std::unique_ptr<capture::CameraSource> source;
     std::unique_ptr<silhouette::ConservativeUndistorter> undistorter;
     int timeout_ms = 200;
+    common::LatestValue<capture::Frame> raw;  // Capture thread -> silhouette worker.
+    std::atomic<bool> busy{false};  // A silhouette worker is on this camera (shared workers).
+    std::atomic<std::uint32_t>* signal = nullptr;  // Bumped by the capture thread every loop.
     common::LatestValue<Slot> slot;
     std::atomic<std::uint64_t> frames{0};
-    std::atomic<std::uint64_t> corrupt{0};                    // Frames of the wrong size.
-    std::atomic<std::uint8_t> fault{0};                       // capture::CameraFault.
-    capture::CameraHealthMonitor health_monitor;              // Capture thread only.
-    common::ImageU8 foreground;                               // Capture thread only.
-    int heartbeat = -1;                                       // Id in heartbeats_, if any.
+    std::atomic<std::uint64_t> corrupt{0};  // Frames of the wrong size.
+    std::atomic<std::uint8_t> fault{0};     // capture::CameraFault.
+    // Silhouette work (one worker at a time).
+    capture::CameraHealthMonitor health_monitor;
+    common::ImageU8 foreground;
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.
+    int heartbeat = -1;                                       // Id in heartbeats_, if any.
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
     silhouette::TileDilator dilator;
@@ -162,7 +174,18 @@ class Pipeline {
           pinhole(model.Pinhole()) {}
   };
 
+  /// A silhouette worker and the cameras it serves.
+  struct SilhouetteWorker {
+    std::vector<int> cameras;
+    std::atomic<std::uint32_t>* signal = nullptr;  // Waited on while nothing is new.
+    int heartbeat = -1;
+  };
+
   void CaptureLoop(int camera);
+  void SilhouetteLoop(int worker);
+  /// Processes camera `camera`'s newest raw frame unless another worker is on
+  /// it; true when a frame was taken.
+  bool TakeAndProcess(int camera);
   /// `spare`, when not null, is `frame`'s mask and may be taken (swapped with
   /// an older buffer of the same size) instead of copied.
   void ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare = nullptr);
@@ -181,6 +204,8 @@ class Pipeline {
   common::Heartbeats* heartbeats_ = nullptr;
   BlackBox* black_box_ = nullptr;
   int fusion_heartbeat_ = -1;
+  std::vector<SilhouetteWorker> workers_;
+  std::unique_ptr<std::atomic<std::uint32_t>[]> signals_;  // One per worker, or one shared.
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
   std::vector<std::shared_ptr<OccupancySnapshot>> pool_;
   std::vector<std::uint64_t> occupied_bits_, occluded_bits_;  // Publishing grid bitsets.

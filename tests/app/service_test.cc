@@ -423,9 +423,10 @@ TEST(ServiceWatchdogTest, AFrozenPipelineStageStopsThePings) {
         while (freeze.load()) std::this_thread::sleep_for(milliseconds(5));
       },
       &beats);
-  ASSERT_EQ(beats.size(), 2);
+  ASSERT_EQ(beats.size(), 3);
   EXPECT_EQ(beats.name(0), "capture cam0");
-  EXPECT_EQ(beats.name(1), "fusion");
+  EXPECT_EQ(beats.name(1), "silhouette cam0");
+  EXPECT_EQ(beats.name(2), "fusion");
 
   ServiceNotifier notifier;
   ServiceWatchdog watchdog(beats, notifier);

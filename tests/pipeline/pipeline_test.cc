@@ -119,10 +119,12 @@ struct Rig {
   std::vector<capture::SimSource*> sources;
   std::unique_ptr<Pipeline> pipeline;
 
-  explicit Rig(std::shared_ptr<sim::Scene> s = StandingScene(), double max_speed_mps = 2.0)
+  explicit Rig(std::shared_ptr<sim::Scene> s = StandingScene(), double max_speed_mps = 2.0,
+               int silhouette_workers = 0)
       : scene(std::move(s)) {
     PipelineOptions options;
     options.max_speed_mps = max_speed_mps;
+    options.silhouette_workers = silhouette_workers;
     options.bounds = scene->bounds;
     options.depth = 7;
     options.publish_depth = 6;
@@ -189,6 +191,26 @@ TEST(PipelineTest, LiveSnapshotsKeepPeopleOccupiedAndALostCameraOnlyGrowsOccupan
   });
   ASSERT_NE(recovered, nullptr) << "camera did not recover";
   EXPECT_EQ(rig.PointsReportedFree(*recovered), 0);
+  rig.pipeline->Stop();
+}
+
+// One silhouette worker shared by three cameras takes each camera's frames in
+// turn: every camera stays ok at its frame rate, and nothing is reported free.
+TEST(PipelineTest, ASharedSilhouetteWorkerServesEveryCamera) {
+  Rig rig(StandingScene(), 2.0, /*silhouette_workers=*/1);
+  auto healthy = rig.WaitFor([](const OccupancySnapshot& s) {
+    if (s.health.degraded || s.occupied.empty() || s.health.cameras.size() != 3) return false;
+    for (const CameraHealth& h : s.health.cameras) {
+      if (h.frames < 40) return false;  // Well over a second of frames from every camera.
+    }
+    return true;
+  });
+  ASSERT_NE(healthy, nullptr) << "no healthy snapshot with every camera's frames within 10 s";
+  EXPECT_EQ(rig.PointsReportedFree(*healthy), 0);
+  for (const CameraHealth& h : healthy->health.cameras) {
+    EXPECT_EQ(h.state, CameraState::kOk) << h.name;
+    EXPECT_GT(h.fps, 20.0) << h.name;
+  }
   rig.pipeline->Stop();
 }
 
