@@ -408,10 +408,16 @@ const Field<DdsConfig> kDdsFields[] = {
 };
 
 const Field<LoggingConfig> kLoggingFields[] = {
-    {.key = "level", .member = &LoggingConfig::level, .meaning = "Least severe level logged."},
+    {.key = "level",
+     .member = &LoggingConfig::level,
+     .meaning = "Least severe level logged. The health line comes once a second, at info while "
+                "all is well and at warn while degraded; stalls and failed black-box dumps are "
+                "errors."},
     {.key = "journald",
      .member = &LoggingConfig::journald,
-     .meaning = "Log to the systemd journal instead of stderr."},
+     .meaning = "Log to the systemd journal (entries with their priority, "
+                "SYSLOG_IDENTIFIER=hullguardd) instead of stderr. Under systemd stderr reaches "
+                "the journal too, as plain lines at one priority."},
 };
 
 const Field<TrackingConfig> kTrackingFields[] = {

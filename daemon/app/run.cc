@@ -13,6 +13,7 @@
 #include "capture/sim_source.h"
 #include "common/config_error.h"
 #include "common/heartbeat.h"
+#include "common/log.h"
 #include "geometry/mesh.h"
 #include "pipeline/black_box.h"
 #include "pipeline/pipeline.h"
@@ -45,22 +46,40 @@ std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
   o.max_memory_mb = config.blackbox.max_memory_mb;
   o.on_dump = [](const pipeline::BlackBoxDump& d) {
     if (!d.error.empty()) {
-      std::fprintf(stderr, "hullguardd: black box (%s): %llu frames written, %llu failed: %s\n",
-                   d.reason.c_str(), static_cast<unsigned long long>(d.frames),
-                   static_cast<unsigned long long>(d.failed), d.error.c_str());
+      log::Error("black box ({}): {} frames written, {} failed: {}", d.reason, d.frames, d.failed,
+                 d.error);
       return;
     }
-    std::fprintf(stderr,
-                 "hullguardd: black box (%s): wrote %llu frames (%.2f s, %llu torn) to %s\n",
-                 d.reason.c_str(), static_cast<unsigned long long>(d.frames),
-                 (d.last_ns - d.first_ns) * 1e-9, static_cast<unsigned long long>(d.torn),
-                 d.directory.c_str());
+    log::Info("black box ({}): wrote {} frames ({:.2f} s, {} torn) to {}", d.reason, d.frames,
+              (d.last_ns - d.first_ns) * 1e-9, d.torn, d.directory);
   };
   auto box = std::make_unique<pipeline::BlackBox>(std::move(o), BlackBoxCameras(config));
-  std::fprintf(stderr, "hullguardd: black box: %.3g s of %zu cameras in %.0f MiB, dumps to %s\n",
-               config.blackbox.seconds, config.cameras.size(),
-               static_cast<double>(box->bytes()) / (1024.0 * 1024.0), config.blackbox.dir.c_str());
+  log::Info("black box: {:.3g} s of {} cameras in {:.0f} MiB, dumps to {}", config.blackbox.seconds,
+            config.cameras.size(), static_cast<double>(box->bytes()) / (1024.0 * 1024.0),
+            config.blackbox.dir);
   return box;
+}
+
+log::Level LogLevelOf(LogLevel level) {
+  switch (level) {
+    case LogLevel::kTrace:
+      return log::Level::kTrace;
+    case LogLevel::kDebug:
+      return log::Level::kDebug;
+    case LogLevel::kInfo:
+      return log::Level::kInfo;
+    case LogLevel::kWarn:
+      return log::Level::kWarn;
+    case LogLevel::kError:
+      return log::Level::kError;
+  }
+  return log::Level::kInfo;
+}
+
+/// The health line at info while all is well, at warning while degraded (so
+/// that `logging.level: warn` still shows what went wrong, once a second).
+void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line) {
+  log::Write(s.health.degraded ? log::Level::kWarn : log::Level::kInfo, line);
 }
 
 const char* StateName(pipeline::CameraState s) {
@@ -137,6 +156,8 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
 }  // namespace
 
 int RunPipeline(const Config& config, double duration_s) {
+  log::Configure("hullguardd", LogLevelOf(config.logging.level),
+                 config.logging.journald ? log::Sink::kJournal : log::Sink::kStderr);
   const pipeline::PipelineOptions options = MakePipelineOptions(config);
   const std::vector<geometry::TriangleMesh> obstacles = LoadObstacles(config);
 
@@ -167,7 +188,7 @@ int RunPipeline(const Config& config, double duration_s) {
   }
 #else
   if (config.dds.enabled) {
-    std::fprintf(stderr, "hullguardd: built without Cyclone DDS: nothing is published\n");
+    log::Warn("built without Cyclone DDS: nothing is published");
   }
 #endif
   common::Heartbeats heartbeats;
@@ -177,8 +198,8 @@ int RunPipeline(const Config& config, double duration_s) {
     tracking = std::make_unique<TrackingStage>(
         MakeTrackerOptions(config.tracking, config.timing.rate_hz), config.cell.bounds,
         MakeStaticScene(config, obstacles), std::move(on_tracks), &heartbeats);
-    std::fprintf(
-        stderr, "hullguardd: tracking on %zu voxels of %g m, built in %.2f s\n",
+    log::Info(
+        "tracking on {} voxels of {:g} m, built in {:.2f} s",
         tracking->tracker().voxel_map().grid().size(), config.tracking.voxel_m,
         std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count());
     // The fusion thread only hands the snapshot over (a shared_ptr copy).
@@ -202,10 +223,9 @@ int RunPipeline(const Config& config, double duration_s) {
   if (tracking) tracking->Start();
   pipeline.Start();
   watchdog.Start();
-  std::fprintf(stderr, "hullguardd: running %s\n", Summary(config).c_str());
+  log::Info("running {}", Summary(config));
   // Lets a test or a viewer relate stamps to scene or recording time.
-  std::fprintf(stderr, "hullguardd: sim/replay time 0 is %lld ns (CLOCK_REALTIME)\n",
-               static_cast<long long>(sim_clock.epoch_ns));
+  log::Info("sim/replay time 0 is {} ns (CLOCK_REALTIME)", sim_clock.epoch_ns);
   bool ready = false;
   std::uint64_t blackbox_seen = 0;
   bool blackbox_was_ok = false;  // Starting cameras make the first cycles degraded.
@@ -219,9 +239,9 @@ int RunPipeline(const Config& config, double duration_s) {
     if (duration_s > 0 && now - start >= std::chrono::duration<double>(duration_s)) break;
     if (g_dump.exchange(false)) {
       if (!black_box) {
-        std::fprintf(stderr, "hullguardd: SIGUSR1: the black box is off (blackbox.seconds: 0)\n");
+        log::Warn("SIGUSR1: the black box is off (blackbox.seconds: 0)");
       } else if (!black_box->RequestDump("SIGUSR1")) {
-        std::fprintf(stderr, "hullguardd: SIGUSR1: a black-box dump is already running\n");
+        log::Warn("SIGUSR1: a black-box dump is already running");
       }
     }
     if (black_box && config.blackbox.on_degraded) {
@@ -253,7 +273,7 @@ int RunPipeline(const Config& config, double duration_s) {
       next_report += std::chrono::seconds(1);
       if (const auto s = pipeline.Latest()) {
         const std::string line = HealthLine(*s, tracking.get());
-        std::fprintf(stderr, "hullguardd: %s\n", line.c_str());
+        LogHealth(*s, line);
         watchdog.SetStatus(line);
       }
     }
@@ -263,9 +283,9 @@ int RunPipeline(const Config& config, double duration_s) {
   pipeline.Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
-    std::fprintf(stderr, "hullguardd: %s\n", HealthLine(*s, tracking.get()).c_str());
+    LogHealth(*s, HealthLine(*s, tracking.get()));
   }
-  std::fprintf(stderr, "hullguardd: stopped\n");
+  log::Info("stopped");
   return 0;
 }
 

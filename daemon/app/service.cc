@@ -8,6 +8,7 @@
 #include <systemd/sd-daemon.h>
 
 #include "common/check.h"
+#include "common/log.h"
 
 namespace hg::app {
 
@@ -119,8 +120,7 @@ void ServiceWatchdog::Loop() {
 void ServiceWatchdog::Check(std::string* stalled_names, std::string* last_reported) {
   if (heartbeats_.AllMoved(stalled_names)) {
     if (stalled_.load(std::memory_order_relaxed)) {
-      std::fprintf(stderr, "hullguardd: watchdog: all stages move again (were stalled: %s)\n",
-                   last_reported->c_str());
+      log::Warn("watchdog: all stages move again (were stalled: {})", *last_reported);
       last_reported->clear();
       std::string status;
       {
@@ -138,10 +138,10 @@ void ServiceWatchdog::Check(std::string* stalled_names, std::string* last_report
   stalled_.store(true, std::memory_order_release);
   if (*stalled_names == *last_reported) return;
   *last_reported = *stalled_names;
-  std::fprintf(stderr, "hullguardd: watchdog: stalled stages: %s; %s\n", stalled_names->c_str(),
-               notifier_.WatchdogInterval()
-                   ? "not feeding the systemd watchdog, systemd restarts the daemon"
-                   : "no systemd watchdog, nothing restarts the daemon");
+  log::Error("watchdog: stalled stages: {}; {}", *stalled_names,
+             notifier_.WatchdogInterval()
+                 ? "not feeding the systemd watchdog, systemd restarts the daemon"
+                 : "no systemd watchdog, nothing restarts the daemon");
   notifier_.Status("STALLED: " + *stalled_names +
                    (notifier_.WatchdogInterval() ? " (watchdog not fed, restart pending)" : ""));
 }

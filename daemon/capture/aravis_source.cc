@@ -19,6 +19,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/log.h"
+
 namespace hg::capture {
 namespace {
 
@@ -48,14 +50,19 @@ std::mutex& AravisSystemMutex() {
   return mutex;
 }
 
-void Log(const std::string& device, const char* format, ...) __attribute__((format(printf, 2, 3)));
-void Log(const std::string& device, const char* format, ...) {
+void Log(log::Level level, const std::string& device, const char* format, ...)
+    __attribute__((format(printf, 3, 4)));
+void Log(log::Level level, const std::string& device, const char* format, ...) {
+  if (!log::Enabled(level)) return;
   char text[512];
   va_list args;
   va_start(args, format);
   std::vsnprintf(text, sizeof(text), format, args);
   va_end(args);
-  std::fprintf(stderr, "aravis[%s]: %s\n", device.empty() ? "first camera" : device.c_str(), text);
+  log::Write(level, std::string("aravis[")
+                        .append(device.empty() ? "first camera" : device)
+                        .append("]: ")
+                        .append(text));
 }
 
 // Takes the message out of a GError and frees it. True if there was one.
@@ -336,7 +343,7 @@ AravisSource::AravisSource(AravisOptions options)
     : options_(std::move(options)), releaser_(std::make_shared<Releaser>()) {
   if (options_.frame_rate_hz && *options_.frame_rate_hz > 0.0 &&
       options_.frame_timeout.count() < 2000.0 / *options_.frame_rate_hz) {
-    Log(options_.device,
+    Log(log::Level::kWarn, options_.device,
         "frame_timeout %lld ms is less than two frame periods at %.1f Hz: "
         "the connection will be reopened again and again",
         static_cast<long long>(options_.frame_timeout.count()), *options_.frame_rate_hz);
@@ -378,8 +385,8 @@ AravisSource::~AravisSource() {
   } else {
     // systemd stops the daemon after a few seconds: the release thread finishes
     // on its own (it needs nothing of this object) or ends with the process.
-    Log(options_.device, "leaving %zu unanswered camera release(s) to finish in the background",
-        pending);
+    Log(log::Level::kWarn, options_.device,
+        "leaving %zu unanswered camera release(s) to finish in the background", pending);
     release_thread_.detach();
   }
 }
@@ -574,7 +581,8 @@ AravisSource::Session* AravisSource::Connect(std::string* error) {
 
   const char* model = arv_camera_get_model_name(camera, nullptr);
   const char* serial = arv_camera_get_device_serial_number(camera, nullptr);
-  Log(options_.device, "streaming from %s %s: %dx%d, exposure %.0f us, payload %u bytes%s",
+  Log(log::Level::kInfo, options_.device,
+      "streaming from %s %s: %dx%d, exposure %.0f us, payload %u bytes%s",
       model != nullptr ? model : "?", serial != nullptr ? serial : "?", session->width,
       session->height, exposure_us, payload, gv ? "" : " (not GigE)");
   return session.release();
@@ -604,7 +612,8 @@ void AravisSource::ControlLoop() {
   while (!stopped_.load()) {
     Clock::time_point now = Clock::now();
     if (Session* back = returned_.exchange(nullptr)) {
-      Log(options_.device, "no complete frame for %lld ms: connection lost, reopening",
+      Log(log::Level::kWarn, options_.device,
+          "no complete frame for %lld ms: connection lost, reopening",
           static_cast<long long>(options_.frame_timeout.count()));
       back->lost = true;
       Retire(back);
@@ -622,7 +631,7 @@ void AravisSource::ControlLoop() {
       now = Clock::now();
       if (current != nullptr) {
         if (connections_.fetch_add(1) > 0 || was_lost) {
-          Log(options_.device, "reconnected");
+          Log(log::Level::kInfo, options_.device, "reconnected");
         }
         last_error.clear();
         connected_.store(true);
@@ -630,7 +639,8 @@ void AravisSource::ControlLoop() {
         offered_.store(current, std::memory_order_release);
       } else {
         if (error != last_error || now - last_error_log >= kRepeatLog) {
-          Log(options_.device, "cannot open (retrying, backoff up to %lld ms): %s",
+          Log(log::Level::kWarn, options_.device,
+              "cannot open (retrying, backoff up to %lld ms): %s",
               static_cast<long long>(kMaxBackoff.count()), error.c_str());
           last_error = error;
           last_error_log = now;
@@ -747,7 +757,8 @@ bool AravisSource::Next(Frame* frame, milliseconds timeout) {
       frame->index = index_++;
       if (!active_->first_frame_logged) {
         active_->first_frame_logged = true;
-        Log(options_.device, "first frame: device timestamp %llu ns, host %lld ns",
+        Log(log::Level::kInfo, options_.device,
+            "first frame: device timestamp %llu ns, host %lld ns",
             static_cast<unsigned long long>(arv_buffer_get_timestamp(newest)),
             static_cast<long long>(arrival_ns));
       }

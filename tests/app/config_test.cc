@@ -439,6 +439,31 @@ TEST(HullguarddTest, CheckConfig) {
   EXPECT_EQ(docs.out, ConfigReferenceMarkdown());
 }
 
+// logging.level drops the lines below it: at error, a healthy run prints
+// nothing; at info (above) it prints start-up and a health line a second.
+TEST(HullguarddTest, LogLevelDropsLinesBelowIt) {
+  std::string text = Replace(ReadFile(kConfigDir + "/demo.yaml"), "level: info", "level: error");
+  // The copy lives elsewhere: its relative paths made absolute.
+  for (const std::string from : {"scene: scenes/", "file: demo_cell/"}) {
+    const std::string to =
+        from.substr(0, from.find(' ') + 1) + kConfigDir + "/" + from.substr(from.find(' ') + 1);
+    for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at)) {
+      text.replace(at, from.size(), to);
+      at += to.size();
+    }
+  }
+  const fs::path path = fs::temp_directory_path() / "hg_config_test_log_error.yaml";
+  {
+    std::ofstream out(path);
+    out << text;
+  }
+  const testing::ProcessResult run =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--config " + path.string() + " --duration 1.5");
+  fs::remove(path);
+  EXPECT_EQ(run.code, 0) << run.err;
+  EXPECT_EQ(run.err, "");
+}
+
 TEST(ConfigTrackingTest, DefaultsAreTheTrackersOwn) {
   const Config c = Parse(kMinimal);
   EXPECT_TRUE(c.tracking.enabled);
