@@ -146,8 +146,11 @@ const Field<OctreeSettings> kOctreeFields[] = {
      .limits = {0, 16}},
     {.key = "knowledge_filter_m3",
      .member = &OctreeSettings::knowledge_filter_m3,
-     .meaning = "Occupied components smaller than this volume (m^3) are dropped by the knowledge "
-                "filter; 0 turns the filter off (it frees space the cameras did not certify).",
+     .meaning = "Knowledge filter on the published grid: a 26-connected blob of occupied cells "
+                "smaller than this volume (m^3) is dropped (reported free) unless it touches "
+                "occluded space or a face of the bounds, where it may be part of something "
+                "larger. 0 turns it off; it frees space the cameras did not certify, so set it "
+                "only where such blobs are known noise.",
      .limits = {0, kInf}},
     {.key = "publish_depth",
      .member = &OctreeSettings::publish_depth,

@@ -32,6 +32,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.align_to_frames = config.timing.align_to_frames;
   options.align_margin_ms = config.timing.align_margin_ms;
   options.silhouette_workers = config.threads.silhouette_workers;
+  options.knowledge_filter_m3 = config.octree.knowledge_filter_m3;
   options.publish_depth = config.octree.publish_depth;
   options.max_speed_mps = config.motion.max_speed_mps;
   options.min_camera_distance_m = config.motion.min_camera_distance_m;

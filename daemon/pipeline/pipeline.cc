@@ -4,6 +4,7 @@
 #include <array>
 #include <bit>
 #include <chrono>
+#include <cmath>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
@@ -82,6 +83,13 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   const std::size_t cells = std::size_t{1} << (3 * options_.publish_depth);
   occupied_bits_.assign((cells + 63) / 64, 0);
   occluded_bits_.assign((cells + 63) / 64, 0);
+  published_cell_m3_ = options_.bounds.Size().prod() / static_cast<double>(cells);
+  if (options_.knowledge_filter_m3 > 0.0) {
+    const auto min_cells =
+        static_cast<std::size_t>(std::ceil(options_.knowledge_filter_m3 / published_cell_m3_));
+    blob_filter_ =
+        std::make_unique<BlobFilter>(options_.publish_depth, std::max<std::size_t>(1, min_cells));
+  }
 }
 
 Pipeline::~Pipeline() { Stop(); }
@@ -415,6 +423,14 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
   const octree::UpdateStats stats = tree_->Update(quadtree_ptrs_, control);
   deadline_misses_ += stats.aborted;
   FillCells(snapshot.get());
+  health.knowledge_filter = blob_filter_ != nullptr;
+  health.filtered_blobs = 0;
+  health.filtered_m3 = 0.0;
+  if (blob_filter_) {
+    const BlobFilterStats dropped = blob_filter_->Apply(&snapshot->occupied, snapshot->occluded);
+    health.filtered_blobs = dropped.dropped_components;
+    health.filtered_m3 = static_cast<double>(dropped.dropped_cells) * published_cell_m3_;
+  }
   snapshot->sequence = ++sequence_;
   snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
   snapshot->complete = !stats.aborted;

@@ -17,6 +17,7 @@
 #include "geometry/camera.h"
 #include "geometry/mesh.h"
 #include "octree/octree.h"
+#include "pipeline/blob_filter.h"
 #include "pipeline/snapshot.h"
 #include "silhouette/background_model.h"
 #include "silhouette/quadtree.h"
@@ -45,6 +46,10 @@ struct PipelineOptions {
   /// every camera its own; N > 0 shares N among all cameras, each taking the
   /// cameras' newest frames in turn.
   int silhouette_workers = 0;
+  /// Knowledge filter (BlobFilter) on the published grid: isolated occupied
+  /// blobs below this volume (m^3) are dropped. 0: off. It frees space the
+  /// cameras did not certify.
+  double knowledge_filter_m3 = 0.0;
   /// Depth of the published grid (<= depth): each published cell is occupied
   /// when any leaf inside it is, so coarser publishing stays conservative.
   int publish_depth = 7;
@@ -209,6 +214,8 @@ class Pipeline {
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
   std::vector<std::shared_ptr<OccupancySnapshot>> pool_;
   std::vector<std::uint64_t> occupied_bits_, occluded_bits_;  // Publishing grid bitsets.
+  std::unique_ptr<BlobFilter> blob_filter_;  // With options_.knowledge_filter_m3 > 0.
+  double published_cell_m3_ = 0.0;
   std::atomic<std::shared_ptr<const OccupancySnapshot>> latest_;
   std::atomic<bool> stop_{false};
   std::vector<std::thread> threads_;

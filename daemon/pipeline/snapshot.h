@@ -51,6 +51,11 @@ struct PipelineHealth {
   /// cycle overran its period and the next start was skipped. 0 while the
   /// rate holds.
   std::uint64_t missed_cycles = 0;
+  /// Knowledge filter (octree.knowledge_filter_m3): whether it is on, and
+  /// what it dropped from this snapshot's occupied cells.
+  bool knowledge_filter = false;
+  int filtered_blobs = 0;
+  double filtered_m3 = 0.0;
 };
 
 /// Cells (x .. x + length - 1, y, z) of the published grid (2^depth cells

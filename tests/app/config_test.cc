@@ -164,6 +164,8 @@ TEST(ConfigTest, EverySectionReadsBack) {
   EXPECT_EQ(c.octree.depth, 8);
   EXPECT_EQ(c.octree.boundary_coarsening, 2);
   EXPECT_EQ(c.octree.knowledge_filter_m3, 0.002);
+  EXPECT_EQ(MakePipelineOptions(c).knowledge_filter_m3, 0.002);
+  EXPECT_EQ(MakePipelineOptions(c).silhouette_workers, 3);
   EXPECT_EQ(c.timing.rate_hz, 20.0);
   EXPECT_EQ(c.timing.deadline_ms, 40.0);
   EXPECT_EQ(c.timing.camera_timeout_ms, 150);
