@@ -160,7 +160,8 @@ const Field<OctreeSettings> kOctreeFields[] = {
     {.key = "coarse_first_depth",
      .member = &OctreeSettings::coarse_first_depth,
      .meaning = "0: off. Otherwise a level below depth: each cycle first brings the octree up to "
-                "date down to this level, then refines two levels per pass, so a cycle that hits "
+                "date down to this level, then refines one level per pass down to the tracking "
+                "voxel's level and two per pass below it, so a cycle that hits "
                 "its deadline still publishes a result as fine as its last completed pass "
                 "everywhere (unrefined cells read occupied) instead of whole unvisited regions. "
                 "A complete cycle gives the same result.",

@@ -663,12 +663,13 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     // last pass that completed, or finer.
     bool aborted = run_pass(Updater::Pass::kFull, config_.coarse_first_depth);
     if (!aborted) stats.refined_level = config_.coarse_first_depth;
-    // Every second level: each pass revisits the nodes the previous one stopped
-    // at, and stopping one level above the finest would revisit most nodes.
-    // A pass also stops at the key level, which the update should reach first.
+    // Up to the key level, which the update should reach first, every level:
+    // the coarse passes are cheap, and a deadline that falls short of the key
+    // level then still leaves the level above it. Beyond it every second
+    // level: each pass revisits the nodes the previous one stopped at, and
+    // stopping one level above the finest would revisit most nodes.
     for (int level = config_.coarse_first_depth; !aborted && level < config_.depth;) {
-      int next = std::min(level + 2, config_.depth);
-      if (config_.key_level > level && config_.key_level < next) next = config_.key_level;
+      const int next = std::min(level + (level < config_.key_level ? 1 : 2), config_.depth);
       aborted = run_pass(Updater::Pass::kRefine, next);
       if (!aborted) stats.refined_level = next;
       level = next;

@@ -32,13 +32,15 @@ struct OctreeConfig {
   /// Coarse first (0: off; otherwise a level below `depth`): each update
   /// first brings the tree up to date down to this level only (a node there
   /// that needs finer work reads as occupied meanwhile), then refines it in
-  /// passes, two levels at a time. An abort (a deadline) leaves a result as
+  /// passes: one level at a time up to `key_level`, then two at a time. An
+  /// abort (a deadline) leaves a result as
   /// fine as the last completed pass everywhere, or finer, instead of whole
   /// roots left unvisited. A completed update gives the same leaves as without.
   int coarse_first_depth = 0;
-  /// With coarse first: a refinement pass also stops at this level (0: none),
-  /// so that an update that aborts deeper down is still exact to it. The
-  /// daemon sets the level of its tracking voxels.
+  /// With coarse first: the passes go one level at a time down to this level
+  /// (0: none), so that an update that aborts deeper down is still exact to
+  /// it and one that aborts before is exact to the level above. The daemon
+  /// sets the level of its tracking voxels.
   int key_level = 0;
 };
 

@@ -351,7 +351,7 @@ TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
 
 // The key level is a pass of its own: some aborted updates end refined to
 // exactly it, which without it no update does (passes 3, 5, 7).
-TEST(OctreeCoarseFirstTest, KeyLevelIsAPass) {
+TEST(OctreeCoarseFirstTest, PassesReachTheKeyLevelOneLevelAtATime) {
   RandomScene scene = SequenceScene(45);
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
@@ -370,7 +370,11 @@ TEST(OctreeCoarseFirstTest, KeyLevelIsAPass) {
       (key == 0 ? without_key : with_key).insert(stats.refined_level);
     }
   }
+  // Without a key level: passes 3, 5, 7. With key level 6: 3, 4, 5, 6, 7.
+  EXPECT_EQ(without_key.count(4), 0u);
   EXPECT_EQ(without_key.count(6), 0u);
+  EXPECT_EQ(with_key.count(4), 1u);
+  EXPECT_EQ(with_key.count(5), 1u);
   EXPECT_EQ(with_key.count(6), 1u);
   EXPECT_EQ(with_key.count(7), 1u);  // Budgets large enough to complete.
 }
