@@ -81,12 +81,14 @@ struct PipelineCamera {
 /// worker (one per camera, or a shared few): background model, conservative
 /// undistortion -> a latest-value slot of masks (again newest wins, drops
 /// counted). A slow silhouette step never holds up the capture: it skips to
-/// the newest frame. Fusion thread every 1 / rate_hz: takes each camera's newest mask and builds
-/// that camera's quadtree itself (so the changed flags are always relative to
-/// what the octree last saw), treats a camera silent for longer than its
-/// timeout as seeing nothing, updates the octree under the deadline, and
-/// publishes a snapshot. Snapshots are reused from a small pool once no
-/// consumer holds them: after warm-up a cycle allocates nothing.
+/// the newest frame. Fusion thread every 1 / rate_hz, phase-locked to the
+/// frames (CyclePhase): takes each camera's newest mask and builds that
+/// camera's quadtree itself (so the changed flags are always relative to what
+/// the octree last saw), treats a camera silent for longer than its timeout
+/// as seeing nothing, updates the octree under the deadline, and publishes a
+/// snapshot, after the knowledge filter when one is configured. Snapshots
+/// are reused from a small pool once no consumer holds them: after warm-up a
+/// cycle allocates nothing.
 ///
 /// The consumer runs on the fusion thread after each cycle; it must be quick
 /// (hand the snapshot to another thread for slow work).
