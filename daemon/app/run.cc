@@ -120,6 +120,9 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
                 static_cast<unsigned long long>(s.health.deadline_misses),
                 static_cast<unsigned long long>(s.health.missed_cycles));
   std::string line = head;
+  if (s.health.phase_lock && !s.health.phase_locked) {
+    line.insert(line.size() - 2, " phase unlocked");  // Before " |".
+  }
   if (s.health.knowledge_filter) {
     char part[64];
     std::snprintf(part, sizeof(part), " filtered %.4f m^3 (%d blobs)", s.health.filtered_m3,

@@ -310,6 +310,8 @@ void Pipeline::FusionLoop() {
     std::shared_ptr<OccupancySnapshot> snapshot =
         RunCycle(RealtimeNs(), control, new_second ? elapsed_s : 0.0);
     snapshot->health.cycle_ms = MsSince(cycle_start);
+    snapshot->health.phase_lock = options_.align_to_frames;
+    snapshot->health.phase_locked = options_.align_to_frames && phase.locked();
     latest_.store(snapshot, std::memory_order_release);
     if (consumer_) consumer_(snapshot);
     if (options_.align_to_frames) {

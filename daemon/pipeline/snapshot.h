@@ -51,6 +51,11 @@ struct PipelineHealth {
   /// cycle overran its period and the next start was skipped. 0 while the
   /// rate holds.
   std::uint64_t missed_cycles = 0;
+  /// With timing.align_to_frames: whether the cycle is phase-locked to the
+  /// cameras' frames (CyclePhase::locked(); false while it settles, and when
+  /// the frames come at another rate than the cycle).
+  bool phase_lock = false;
+  bool phase_locked = false;
   /// Knowledge filter (octree.knowledge_filter_m3): whether it is on, and
   /// what it dropped from this snapshot's occupied cells.
   bool knowledge_filter = false;

@@ -172,6 +172,8 @@ TEST(PipelineTest, LiveSnapshotsKeepPeopleOccupiedAndALostCameraOnlyGrowsOccupan
   ASSERT_NE(healthy, nullptr) << "no healthy snapshot within 10 s";
   EXPECT_EQ(rig.PointsReportedFree(*healthy), 0);
   EXPECT_EQ(healthy->health.cameras.size(), 3U);
+  // Cameras at the cycle's rate: the cycle locks onto their frames.
+  EXPECT_NE(rig.WaitFor([](const OccupancySnapshot& s) { return s.health.phase_locked; }), nullptr);
   for (const CameraHealth& h : healthy->health.cameras) EXPECT_EQ(h.state, CameraState::kOk);
   const std::size_t occupied_before = OccupancySnapshot::Cells(healthy->occupied);
 
