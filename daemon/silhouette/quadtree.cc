@@ -59,7 +59,8 @@ SilhouetteQuadtree::SilhouetteQuadtree(const SilhouetteQuadtree& other)
       words_(other.words_),
       changed_(other.changed_),
       valid_(other.valid_),
-      levels_(other.levels_) {}
+      levels_(other.levels_),
+      sums_(other.sums_) {}
 
 SilhouetteQuadtree& SilhouetteQuadtree::operator=(const SilhouetteQuadtree& other) {
   if (this != &other) {
@@ -79,6 +80,7 @@ SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
   words_.assign(tiles, 0);
   changed_.assign(tiles, 0);
   valid_.assign(tiles, 0);
+  sums_.assign(static_cast<std::size_t>(tiles_w_ + 1) * (tiles_h_ + 1), 0);
   for (int ty = 0; ty < tiles_h_; ++ty) {
     for (int tx = 0; tx < tiles_w_; ++tx) {
       valid_[ty * tiles_w_ + tx] =
@@ -174,6 +176,7 @@ void SilhouetteQuadtree::MarkAllChanged() {
 }
 
 void SilhouetteQuadtree::BuildCoarseLevels() {
+  BuildSums();
   for (std::size_t k = 1; k < levels_.size(); ++k) {
     const Level& fine = levels_[k - 1];
     Level& coarse = levels_[k];
@@ -204,6 +207,88 @@ void SilhouetteQuadtree::BuildCoarseLevels() {
   }
 }
 
+namespace {
+constexpr int kSumBits = 21;
+constexpr std::uint64_t kSumField = (std::uint64_t{1} << kSumBits) - 1;
+}  // namespace
+
+void SilhouetteQuadtree::BuildSums() {
+  const std::size_t stride = static_cast<std::size_t>(tiles_w_) + 1;
+  const std::vector<std::uint8_t>& cells = levels_[0].cells;
+  for (int ty = 0; ty < tiles_h_; ++ty) {
+    const std::uint64_t* above = sums_.data() + static_cast<std::size_t>(ty) * stride;
+    std::uint64_t* row = sums_.data() + static_cast<std::size_t>(ty + 1) * stride;
+    const std::uint8_t* c = cells.data() + static_cast<std::size_t>(ty) * tiles_w_;
+    std::uint64_t run = 0;  // This row's tiles so far; no field exceeds the tile count.
+    for (int tx = 0; tx < tiles_w_; ++tx) {
+      run += static_cast<std::uint64_t>(c[tx] & 1) |
+             (static_cast<std::uint64_t>((c[tx] >> 1) & 1) << kSumBits) |
+             (static_cast<std::uint64_t>((c[tx] & kChangedBit) != 0) << (2 * kSumBits));
+      row[tx + 1] = above[tx + 1] + run;
+    }
+  }
+}
+
+std::uint64_t SilhouetteQuadtree::TileSum(int tx0, int ty0, int tx1, int ty1) const {
+  const std::size_t stride = static_cast<std::size_t>(tiles_w_) + 1;
+  const std::uint64_t* top = sums_.data() + static_cast<std::size_t>(ty0) * stride;
+  const std::uint64_t* bottom = sums_.data() + static_cast<std::size_t>(ty1 + 1) * stride;
+  // Inclusion-exclusion field by field: the additions first, so that no
+  // field goes negative on the way.
+  return (bottom[tx1 + 1] + top[tx0]) - (top[tx1 + 1] + bottom[tx0]);
+}
+
+template <bool kChanged>
+std::uint8_t SilhouetteQuadtree::LargeRect(const geometry::PixelRect& rect) const {
+  const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
+  // Every tile the rect touches: pure there is pure in the rect.
+  const std::uint64_t all = TileSum(tu0, tv0, tu1, tv1);
+  if constexpr (kChanged) {
+    if (((all >> (2 * kSumBits)) & kSumField) == 0) return 0;
+  } else {
+    if (((all >> kSumBits) & kSumField) == 0) return 1;  // No tile holds foreground.
+    if ((all & kSumField) == 0) return 2;                // No tile holds background.
+  }
+  // Tiles wholly inside the rect (a tile's pixels beyond the image count as
+  // inside): their counts are the rect's own.
+  const int ix0 = (rect.u0 & 7) == 0 ? tu0 : tu0 + 1;
+  const int ix1 = ((rect.u1 & 7) == 7 || rect.u1 == width_ - 1) ? tu1 : tu1 - 1;
+  const int iy0 = (rect.v0 & 7) == 0 ? tv0 : tv0 + 1;
+  const int iy1 = ((rect.v1 & 7) == 7 || rect.v1 == height_ - 1) ? tv1 : tv1 - 1;
+  const bool interior = ix0 <= ix1 && iy0 <= iy1;
+  std::uint8_t acc = 0;
+  if (interior) {
+    const std::uint64_t in = TileSum(ix0, iy0, ix1, iy1);
+    if constexpr (kChanged) {
+      if (((in >> (2 * kSumBits)) & kSumField) != 0) return 1;
+    } else {
+      acc = static_cast<std::uint8_t>(((in & kSumField) != 0 ? 1 : 0) |
+                                      (((in >> kSumBits) & kSumField) != 0 ? 2 : 0));
+      if (acc == 3) return acc;
+    }
+  }
+  // The border tiles, pixel-exact.
+  auto tile = [&](int tx, int ty) {
+    const std::size_t t = static_cast<std::size_t>(ty) * tiles_w_ + tx;
+    if constexpr (kChanged) {
+      return static_cast<std::uint8_t>((changed_[t] & RectBitsInTile(rect, tx, ty)) != 0);
+    } else {
+      const std::uint8_t cover = levels_[0].cells[t] & 3;
+      acc |= cover != 3 ? cover : CoverOfBits(words_[t], RectBitsInTile(rect, tx, ty));
+      return static_cast<std::uint8_t>(acc == 3);
+    }
+  };
+  for (int ty = tv0; ty <= tv1; ++ty) {
+    const bool middle = interior && ty >= iy0 && ty <= iy1;
+    for (int tx = tu0; tx <= tu1; ++tx) {
+      if (middle && tx == ix0) tx = ix1 + 1;  // Skip the interior.
+      if (tx > tu1) break;
+      if (tile(tx, ty) != 0) return kChanged ? 1 : 3;
+    }
+  }
+  return acc;
+}
+
 int SilhouetteQuadtree::PushCover(const geometry::PixelRect& rect, Item* stack) const {
   // Start at the finest level where the rect spans at most 2x2 elements
   // instead of descending from the root.
@@ -221,63 +306,11 @@ int SilhouetteQuadtree::PushCover(const geometry::PixelRect& rect, Item* stack) 
   return sp;
 }
 
-template <bool kChanged>
-std::uint8_t SilhouetteQuadtree::Descend(const geometry::PixelRect& rect, std::uint8_t goal) const {
-  Item stack[kStackSize];
-  int sp = PushCover(rect, stack);
-  std::uint8_t acc = 0;
-  while (sp > 0) {
-    const Item it = stack[--sp];
-    const Level& lv = levels_[it.level];
-    const int side = 8 << lv.shift;
-    const int ex0 = it.x * side;
-    const int ey0 = it.y * side;
-    const int ex1 = ex0 + side - 1;
-    const int ey1 = ey0 + side - 1;
-    if (ex0 > rect.u1 || ey0 > rect.v1 || ex1 < rect.u0 || ey1 < rect.v0) continue;
-    const std::uint8_t cell = lv.cells[static_cast<std::size_t>(it.y) * lv.width + it.x];
-    const bool inside = ex0 >= rect.u0 && ey0 >= rect.v0 && ex1 <= rect.u1 && ey1 <= rect.v1;
-    if constexpr (kChanged) {
-      if ((cell & kChangedBit) == 0) continue;
-      if (inside) return goal;
-    } else {
-      const std::uint8_t cover = cell & 3;
-      if (cover != 3 || inside) {
-        acc |= cover;
-        if (acc == goal) return acc;
-        continue;
-      }
-    }
-    if (it.level == 0) {
-      const std::size_t t = static_cast<std::size_t>(it.y) * tiles_w_ + it.x;
-      const std::uint64_t m = RectBitsInTile(rect, it.x, it.y);
-      if constexpr (kChanged) {
-        if ((changed_[t] & m) != 0) return goal;
-      } else {
-        acc |= CoverOfBits(words_[t], m);
-        if (acc == goal) return acc;
-      }
-      continue;
-    }
-    const Level& fine = levels_[it.level - 1];
-    const int cx = 2 * it.x;
-    const int cy = 2 * it.y;
-    for (int dy = 1; dy >= 0; --dy) {
-      for (int dx = 1; dx >= 0; --dx) {
-        if (cx + dx < fine.width && cy + dy < fine.height) {
-          stack[sp++] = {it.level - 1, cx + dx, cy + dy};
-        }
-      }
-    }
-  }
-  return acc;
-}
-
 Cover SilhouetteQuadtree::Query(const geometry::PixelRect& rect) const {
   // Footprints of fine octree cells span a few pixels: up to 2x2 tiles are read
   // directly, without the descent.
   const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
-  if (tu1 - tu0 > 1 || tv1 - tv0 > 1) return static_cast<Cover>(Descend<false>(rect, 3));
+  if (tu1 - tu0 > 1 || tv1 - tv0 > 1) return static_cast<Cover>(LargeRect<false>(rect));
   std::uint8_t acc = 0;
   for (int ty = tv0; ty <= tv1; ++ty) {
     for (int tx = tu0; tx <= tu1; ++tx) {
@@ -292,7 +325,15 @@ Cover SilhouetteQuadtree::Query(const geometry::PixelRect& rect) const {
 }
 
 bool SilhouetteQuadtree::AnyChanged(const geometry::PixelRect& rect) const {
-  return Descend<true>(rect, 1) != 0;
+  const int tu0 = rect.u0 >> 3, tu1 = rect.u1 >> 3, tv0 = rect.v0 >> 3, tv1 = rect.v1 >> 3;
+  if (tu1 - tu0 > 1 || tv1 - tv0 > 1) return LargeRect<true>(rect) != 0;
+  for (int ty = tv0; ty <= tv1; ++ty) {
+    for (int tx = tu0; tx <= tu1; ++tx) {
+      const std::size_t t = static_cast<std::size_t>(ty) * tiles_w_ + tx;
+      if ((changed_[t] & RectBitsInTile(rect, tx, ty)) != 0) return true;
+    }
+  }
+  return false;
 }
 
 bool SilhouetteQuadtree::ChangedSince(const geometry::PixelRect& rect,

@@ -21,7 +21,11 @@ enum class Cover : std::uint8_t { kNone = 0, kBackground = 1, kForeground = 2, k
 /// (8tx+c, 8ty+r)); every coarser level halves the tile grid. Each element
 /// stores its Cover and a changed flag (some pixel differs from the mask of the
 /// previous Build()). Queries are exact at pixel level and stop as soon as the
-/// answer is known.
+/// answer is known: a rect of up to 2x2 tiles reads its tiles; a larger one
+/// first asks a summed-area table over the tiles (four look-ups answer it
+/// where the tiles it touches are all alike, or where those wholly inside it
+/// already differ), then reads only its border tiles. The coarser levels
+/// serve ChangedSince(), whose per-element versions do not sum.
 ///
 /// Thread-compatible: Build() must not run concurrently with anything else;
 /// const queries may run concurrently. Build() does not allocate.
@@ -95,9 +99,14 @@ class SilhouetteQuadtree {
   /// Pushes the elements that cover `rect` at the finest level where it spans
   /// at most 2x2 of them; returns how many.
   int PushCover(const geometry::PixelRect& rect, Item* stack) const;
-  template <bool kChanged>
-  [[nodiscard]] std::uint8_t Descend(const geometry::PixelRect& rect, std::uint8_t goal) const;
   void BuildCoarseLevels();
+  /// Fills sums_ from the tile covers and changed bits.
+  void BuildSums();
+  /// Counts over tiles [tx0, tx1] x [ty0, ty1], packed as in sums_.
+  [[nodiscard]] std::uint64_t TileSum(int tx0, int ty0, int tx1, int ty1) const;
+  /// Query() and AnyChanged() of a rect spanning more than 2x2 tiles.
+  template <bool kChanged>
+  [[nodiscard]] std::uint8_t LargeRect(const geometry::PixelRect& rect) const;
   // Turns row ty's new words (assembled in changed_) into words, changed bits
   // and tile covers.
   void CommitTileRow(int ty, bool first);
@@ -112,6 +121,11 @@ class SilhouetteQuadtree {
   std::vector<std::uint64_t> changed_;  // Changed bits per tile.
   std::vector<std::uint64_t> valid_;    // Bits inside the image per tile.
   std::vector<Level> levels_;           // levels_[0]: tiles; last: 1x1.
+  /// Summed-area table over the tiles, (tiles_w_ + 1) x (tiles_h_ + 1): per
+  /// entry the number of tiles above and left of it holding background (bits
+  /// 0-20), foreground (bits 21-41) and a changed pixel (bits 42-62). Answers
+  /// a large rect's tiles in four look-ups.
+  std::vector<std::uint64_t> sums_;
 };
 
 }  // namespace hg::silhouette
