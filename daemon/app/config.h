@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/box.h"
+#include "common/log.h"
 #include "geometry/camera.h"
 
 namespace hg::app {
@@ -62,7 +63,8 @@ enum class Trigger { kFreeRun, kSoftware, kHardware };
 /// V4L2 capture formats.
 enum class V4l2Format { kGrey, kYuyv, kMjpeg };
 /// Log levels.
-enum class LogLevel { kTrace, kDebug, kInfo, kWarn, kError };
+/// Log severity: the logging facade's own (common/log.h).
+using LogLevel = log::Level;
 
 /// The YAML spelling of each enum value ("sim", "BayerRG8", "free_run", "GREY", "info").
 [[nodiscard]] const char* ToString(SourceType v);

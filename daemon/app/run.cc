@@ -60,22 +60,6 @@ std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
   return box;
 }
 
-log::Level LogLevelOf(LogLevel level) {
-  switch (level) {
-    case LogLevel::kTrace:
-      return log::Level::kTrace;
-    case LogLevel::kDebug:
-      return log::Level::kDebug;
-    case LogLevel::kInfo:
-      return log::Level::kInfo;
-    case LogLevel::kWarn:
-      return log::Level::kWarn;
-    case LogLevel::kError:
-      return log::Level::kError;
-  }
-  return log::Level::kInfo;
-}
-
 /// The health line at info while all is well, at warning while degraded (so
 /// that `logging.level: warn` still shows what went wrong, once a second).
 void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line) {
@@ -165,7 +149,7 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
 }  // namespace
 
 int RunPipeline(const Config& config, double duration_s) {
-  log::Configure("hullguardd", LogLevelOf(config.logging.level),
+  log::Configure("hullguardd", config.logging.level,
                  config.logging.journald ? log::Sink::kJournal : log::Sink::kStderr);
   const pipeline::PipelineOptions options = MakePipelineOptions(config);
   const std::vector<geometry::TriangleMesh> obstacles = LoadObstacles(config);
