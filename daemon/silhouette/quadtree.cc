@@ -77,6 +77,9 @@ SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
       id_(NewQuadtreeId()) {
   HG_CHECK(width > 0 && height > 0);
   const std::size_t tiles = static_cast<std::size_t>(tiles_w_) * tiles_h_;
+  // Two of sums_'s 21-bit counts are added before one is subtracted (TileSum):
+  // up to 2^20 tiles, an image of about 8000 x 8000 pixels.
+  HG_CHECK(tiles <= (std::size_t{1} << 20));
   words_.assign(tiles, 0);
   changed_.assign(tiles, 0);
   valid_.assign(tiles, 0);
