@@ -110,8 +110,11 @@ void Pipeline::Stop() {
   for (auto& camera : cameras_) {
     if (camera->source) camera->source->Stop();
   }
+  // After stop_ (both sequentially consistent): a worker that read its
+  // signal before this bump and stop_ as false waits on a stale value and
+  // wakes (SilhouetteLoop).
   for (SilhouetteWorker& worker : workers_) {
-    worker.signal->fetch_add(1, std::memory_order_release);
+    worker.signal->fetch_add(1);
     worker.signal->notify_all();
   }
   for (std::thread& t : threads_) {
@@ -151,7 +154,10 @@ void Pipeline::SilhouetteLoop(int index) {
   const SilhouetteWorker& worker = workers_[index];
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(worker.heartbeat);
-    const std::uint32_t seen = worker.signal->load(std::memory_order_acquire);
+    // The signal before stop_, as Stop() writes them the other way round:
+    // either this sees the stop, or the wait below sees Stop()'s bump.
+    const std::uint32_t seen = worker.signal->load();
+    if (stop_.load()) break;
     bool took = false;
     for (int camera : worker.cameras) took = TakeAndProcess(camera) || took;
     if (!took) worker.signal->wait(seen, std::memory_order_acquire);
