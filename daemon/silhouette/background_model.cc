@@ -13,7 +13,9 @@
 // The per-row kernels are plain loops for the auto-vectoriser. x86-64's
 // baseline (SSE2) cannot gather every third byte, which the RGB threshold
 // needs, so on x86-64 they are also built for AVX2 and picked at load time.
-#if defined(__x86_64__) && defined(__has_attribute)
+// Not under ThreadSanitizer: the clones' resolver runs while the program is
+// being loaded, before the sanitizer's runtime is up, and crashes there.
+#if defined(__x86_64__) && defined(__has_attribute) && !defined(__SANITIZE_THREAD__)
 #if __has_attribute(target_clones) && !defined(__clang__)
 #define HG_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
 #endif
