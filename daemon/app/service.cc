@@ -1,7 +1,6 @@
 #include "app/service.h"
 
 #include <algorithm>
-#include <cstdio>
 #include <cstdlib>
 #include <utility>
 

@@ -1,6 +1,5 @@
 #include "common/log.h"
 
-#include <atomic>
 #include <memory>
 
 #include <spdlog/logger.h>
