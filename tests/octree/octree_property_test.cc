@@ -242,7 +242,9 @@ TEST(OctreeSequenceTest, MissedVersionsAreFoundAndNotRecomputedWhole) {
     ASSERT_EQ(testing::Leaves(incremental), testing::Leaves(scratch)) << "frame " << frame;
     const UpdateStats whole = replaced.Update(fresh.ptrs);
     ASSERT_EQ(testing::Leaves(replaced), testing::Leaves(scratch)) << "frame " << frame;
-    if (frame > 0) EXPECT_LT(inc.verdicts_computed, whole.verdicts_computed / 2) << frame;
+    if (frame > 0) {
+      EXPECT_LT(inc.verdicts_computed, whole.verdicts_computed / 2) << frame;
+    }
   }
 }
 
