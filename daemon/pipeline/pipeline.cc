@@ -314,7 +314,7 @@ void Pipeline::FusionLoop() {
     control.deadline = cycle_start + std::chrono::microseconds(
                                          static_cast<std::int64_t>(options_.deadline_ms * 1e3));
     std::shared_ptr<OccupancySnapshot> snapshot =
-        RunCycle(RealtimeNs(), control, new_second ? elapsed_s : 0.0);
+        RunCycle(RealtimeNs(), control, new_second ? elapsed_s : 0.0, cycle_start);
     snapshot->health.cycle_ms = MsSince(cycle_start);
     snapshot->health.phase_lock = options_.align_to_frames;
     snapshot->health.phase_locked = options_.align_to_frames && phase.locked();
@@ -337,9 +337,9 @@ std::shared_ptr<const OccupancySnapshot> Pipeline::Step(std::int64_t now_ns) {
   return snapshot;
 }
 
-std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
-                                                      const octree::UpdateControl& control,
-                                                      double fps_window_s) {
+std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
+    std::int64_t now_ns, const octree::UpdateControl& control, double fps_window_s,
+    std::optional<SteadyClock::time_point> received_by) {
   const bool new_second = fps_window_s > 0.0;
   std::shared_ptr<OccupancySnapshot> snapshot = FreeSnapshot();
   PipelineHealth& health = snapshot->health;
@@ -359,7 +359,9 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(std::int64_t now_ns,
     }
     const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
     const std::uint8_t fault = c.fault.load(std::memory_order_relaxed);
-    const bool live = c.seen && age_ms <= c.timeout_ms && fault == 0;
+    const bool received_lately =
+        !received_by || *received_by - c.last_ready <= std::chrono::milliseconds(c.timeout_ms);
+    const bool live = c.seen && age_ms <= c.timeout_ms && received_lately && fault == 0;
     if (live) newest_stamp = std::max(newest_stamp, c.last_stamp_ns);
     quadtree_ptrs_[i] = live ? &c.quadtree : nullptr;
     const std::uint64_t frames = c.frames.load(std::memory_order_relaxed);

@@ -7,6 +7,7 @@
 #include <chrono>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <thread>
 #include <vector>
 
@@ -198,9 +199,13 @@ class Pipeline {
   void ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare = nullptr);
   void FusionLoop();
   /// One fusion cycle; fps_window_s > 0 also updates the frame rates.
-  std::shared_ptr<OccupancySnapshot> RunCycle(std::int64_t now_ns,
-                                              const octree::UpdateControl& control,
-                                              double fps_window_s);
+  /// `received_by`, in live use, is the cycle's start on the steady clock: a
+  /// camera also counts as silent when its newest frame was handed over
+  /// longer than its timeout before that (the frame age alone is measured on
+  /// the stamps' clock, which a time step can move backwards).
+  std::shared_ptr<OccupancySnapshot> RunCycle(
+      std::int64_t now_ns, const octree::UpdateControl& control, double fps_window_s,
+      std::optional<std::chrono::steady_clock::time_point> received_by = std::nullopt);
   std::shared_ptr<OccupancySnapshot> FreeSnapshot();
   void FillCells(OccupancySnapshot* snapshot);
 

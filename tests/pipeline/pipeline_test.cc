@@ -3,6 +3,7 @@
 // only grows occupancy, and the camera recovers. Plus the latest-value slot.
 #include "pipeline/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -120,9 +121,13 @@ struct Rig {
   std::vector<capture::SimSource*> sources;
   std::unique_ptr<Pipeline> pipeline;
 
+  /// `stamp_shift`: the cameras stamp their frames this far from the host's
+  /// CLOCK_REALTIME (as after the host clock was stepped).
   explicit Rig(std::shared_ptr<sim::Scene> s = StandingScene(), double max_speed_mps = 2.0,
-               int silhouette_workers = 0, double knowledge_filter_m3 = 0.0)
+               int silhouette_workers = 0, double knowledge_filter_m3 = 0.0,
+               std::chrono::nanoseconds stamp_shift = {})
       : scene(std::move(s)) {
+    clock.epoch_ns += stamp_shift.count();
     PipelineOptions options;
     options.max_speed_mps = max_speed_mps;
     options.silhouette_workers = silhouette_workers;
@@ -195,6 +200,32 @@ TEST(PipelineTest, LiveSnapshotsKeepPeopleOccupiedAndALostCameraOnlyGrowsOccupan
   });
   ASSERT_NE(recovered, nullptr) << "camera did not recover";
   EXPECT_EQ(rig.PointsReportedFree(*recovered), 0);
+  rig.pipeline->Stop();
+}
+
+// The host clock stepped back by a minute after the frames were stamped: their
+// stamps lie in the future, so their age is negative. Cameras that fall
+// silent must still turn stale within their timeout, measured on the steady
+// clock from the hand-over of their last frame. (All of them: a camera
+// silent while others go on turns stale anyway, by its lag behind them.)
+TEST(PipelineTest, SilentCamerasTurnStaleWhateverTheStampsSay) {
+  Rig rig(StandingScene(), 2.0, 0, 0.0, std::chrono::minutes(1));
+  auto healthy = rig.WaitFor([](const OccupancySnapshot& s) {
+    return s.sequence > 5 && !s.health.degraded && !s.occupied.empty();
+  });
+  ASSERT_NE(healthy, nullptr) << "no healthy snapshot within 10 s";
+  EXPECT_LT(healthy->health.cameras[2].frame_age_ms, 0.0) << "the stamps are not ahead";
+  for (capture::SimSource* source : rig.sources) source->SetPaused(true);
+  const auto paused = std::chrono::steady_clock::now();
+  auto stale = rig.WaitFor([](const OccupancySnapshot& s) {
+    return s.health.degraded &&
+           std::all_of(s.health.cameras.begin(), s.health.cameras.end(),
+                       [](const CameraHealth& h) { return h.state == CameraState::kStale; });
+  });
+  ASSERT_NE(stale, nullptr) << "silent cameras with future stamps stayed live";
+  // Timeout 150 ms plus a cycle or two, with room for a loaded machine.
+  EXPECT_LT(std::chrono::steady_clock::now() - paused, 2s);
+  EXPECT_EQ(rig.PointsReportedFree(*stale), 0);
   rig.pipeline->Stop();
 }
 
