@@ -1,5 +1,6 @@
 #include "app/run.h"
 
+#include <algorithm>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
@@ -25,6 +26,10 @@ namespace hg::app {
 namespace {
 
 std::atomic<bool> g_stop{false};
+
+/// Longest wait for every camera's first frame before READY=1 (systemd's
+/// TimeoutStartSec in systemd/hullguardd.service leaves room for it).
+constexpr std::chrono::seconds kReadyWait{15};
 
 void OnSignal(int /*signal*/) { g_stop.store(true); }
 
@@ -256,10 +261,22 @@ int RunPipeline(const Config& config, double duration_s) {
       }
     }
     if (!ready) {
+      // READY=1 once a cycle in which every camera had delivered a frame is
+      // published. A camera that never comes up does not keep the service
+      // from starting: after kReadyWait it is ready, degraded, naming that
+      // camera in its status (and the stream has been published all along).
       if (const auto s = pipeline.Latest()) {
-        notifier.Ready();
-        watchdog.SetStatus(HealthLine(*s, tracking.get()));
-        ready = true;
+        const bool cameras_open = std::none_of(s->health.cameras.begin(), s->health.cameras.end(),
+                                               [](const pipeline::CameraHealth& h) {
+                                                 return h.state == pipeline::CameraState::kStarting;
+                                               });
+        if (cameras_open || now - start >= kReadyWait) {
+          const std::string line = HealthLine(*s, tracking.get());
+          if (!cameras_open) log::Warn("ready without every camera: {}", line);
+          notifier.Ready();
+          watchdog.SetStatus(line);
+          ready = true;
+        }
       }
     }
     if (now >= next_report) {

@@ -2,10 +2,16 @@
 // subscribes as a robot controller would. Run inside a private network
 // namespace holding only loopback (tests/publish/in_netns.sh).
 //   daemon_e2e_test HULLGUARDD SOURCE_DIR
+#include <poll.h>
 #include <signal.h>
+#include <sys/socket.h>
+#include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <optional>
@@ -257,6 +263,65 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
   // The daemon's log names the stale camera within the timeout (200 ms) plus
   // a reporting period.
   EXPECT_NE(daemon.Log().find("cam3 stale"), std::string::npos) << daemon.Log();
+}
+
+// This test plays systemd for Type=notify: READY=1 comes only once every
+// camera has delivered (the status line sent with it names no camera still
+// starting), WATCHDOG=1 follows while every stage runs, and SIGTERM ends the
+// daemon cleanly within a second, with STOPPING=1 first.
+TEST_F(DaemonE2E, NotifiesReadyWatchdogAndStoppingAsAService) {
+  const std::string socket_path = (dir_ / "notify").string();
+  const int fd = socket(AF_UNIX, SOCK_DGRAM | SOCK_CLOEXEC, 0);
+  ASSERT_GE(fd, 0);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  ASSERT_LT(socket_path.size(), sizeof(addr.sun_path));
+  std::strncpy(addr.sun_path, socket_path.c_str(), sizeof(addr.sun_path) - 1);
+  ASSERT_EQ(bind(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)), 0);
+  setenv("NOTIFY_SOCKET", socket_path.c_str(), 1);
+  setenv("WATCHDOG_USEC", "1000000", 1);  // Pings every 0.5 s.
+  testing::HullguarddRun daemon(g_daemon, g_source_dir + "/config/demo.yaml", 60.0, dir_);
+  unsetenv("NOTIFY_SOCKET");
+  unsetenv("WATCHDOG_USEC");
+
+  std::vector<std::string> messages;  // One line each, in arrival order.
+  auto receive_until = [&](Clock::duration limit, auto done) {
+    for (const auto end = Clock::now() + limit; Clock::now() < end && !done();) {
+      pollfd p{fd, POLLIN, 0};
+      if (poll(&p, 1, 50) <= 0) continue;
+      char buf[4096];
+      const ssize_t n = recv(fd, buf, sizeof(buf), 0);
+      if (n <= 0) continue;
+      std::istringstream lines(std::string(buf, static_cast<std::size_t>(n)));
+      for (std::string line; std::getline(lines, line);) messages.push_back(line);
+    }
+  };
+  auto index_of = [&](const std::string& line, std::size_t from = 0) {
+    const auto it =
+        std::find(messages.begin() + static_cast<std::ptrdiff_t>(from), messages.end(), line);
+    return static_cast<std::size_t>(it - messages.begin());
+  };
+  // READY, then a ping after it.
+  receive_until(30s, [&] {
+    const std::size_t ready = index_of("READY=1");
+    return ready < messages.size() && index_of("WATCHDOG=1", ready) < messages.size();
+  });
+  const std::size_t ready = index_of("READY=1");
+  ASSERT_LT(ready, messages.size()) << "no READY=1\n" << daemon.Log();
+  ASSERT_LT(index_of("WATCHDOG=1", ready), messages.size()) << "no WATCHDOG=1 after READY=1";
+  const auto status =
+      std::find_if(messages.begin() + static_cast<std::ptrdiff_t>(ready), messages.end(),
+                   [](const std::string& m) { return m.rfind("STATUS=", 0) == 0; });
+  ASSERT_NE(status, messages.end()) << "no STATUS= with READY=1";
+  EXPECT_EQ(status->find("starting"), std::string::npos) << *status;
+  EXPECT_NE(status->find("cam3 ok"), std::string::npos) << *status;
+
+  Clock::duration took{};
+  EXPECT_EQ(daemon.Terminate(1s, &took), 0) << daemon.Log();
+  EXPECT_LT(took, 1s);
+  receive_until(500ms, [&] { return index_of("STOPPING=1") < messages.size(); });
+  EXPECT_LT(index_of("STOPPING=1"), messages.size());
+  close(fd);
 }
 
 TEST_F(DaemonE2E, BadConfigExitsTwoNamingKeyAndLine) {
