@@ -64,7 +64,8 @@ constexpr double kPathTurnHalfM = 0.3;
 /// Arms that do not bear weight still lift the body once they would sink more
 /// than this below the ground (only in transitions; keeps the function continuous).
 constexpr double kArmGroundMarginM = 0.05;
-/// Step of the central difference for velocity_W (s).
+/// Step of the difference for velocity_W (s): central, forward at the start of
+/// the script.
 constexpr double kVelocityStepS = 1e-3;
 /// Stride (one full gait cycle) at 1.2 m/s, as a share of the height.
 constexpr double kStrideShare = 0.75;
@@ -831,9 +832,15 @@ BodyState EvaluatePerson(const Person& person, double t_s) {
   state.heading_rad = now.pose.heading;
   state.action = action;
   ActionKind ignored = ActionKind::kStand;
-  const Vector3d before = EvaluateTimeline(person, d, t_s - kVelocityStepS, &ignored).loc;
-  const Vector3d after = EvaluateTimeline(person, d, t_s + kVelocityStepS, &ignored).loc;
-  state.velocity_W = (after - before) / (2.0 * kVelocityStepS);
+  // Central difference, but forward at the start of the script (t = 0): before
+  // it nobody has started moving, so a sample there would halve the speed of
+  // someone who walks from t = 0.
+  const bool forward = t_s - kVelocityStepS < 0.0;
+  const double t_before = forward ? t_s : t_s - kVelocityStepS;
+  const double t_after = t_s + kVelocityStepS;
+  const Vector3d before = forward ? now.loc : EvaluateTimeline(person, d, t_before, &ignored).loc;
+  const Vector3d after = EvaluateTimeline(person, d, t_after, &ignored).loc;
+  state.velocity_W = (after - before) / (t_after - t_before);
   ComputeBoundingEllipsoid(&state);
   return state;
 }

@@ -499,6 +499,8 @@ class SceneParser {
     std::filesystem::path path(file.String());
     if (path.is_relative() && !base_dir_.empty()) path = std::filesystem::path(base_dir_) / path;
     MeshSolid solid;
+    solid.file = file.String();
+    solid.loaded_from = path.string();
     try {
       solid.mesh = geometry::LoadMesh(path.string());
     } catch (const ConfigError& e) {

@@ -37,6 +37,11 @@ struct CapsuleSolid {
 /// Triangle mesh in world coordinates (already placed).
 struct MeshSolid {
   geometry::TriangleMesh mesh;
+  /// The mesh file as the scene file names it (a relative path is relative to
+  /// the scene file's folder); empty for meshes built in code.
+  std::string file = {};
+  /// The path `file` resolved to, which the mesh was loaded from.
+  std::string loaded_from = {};
 };
 
 using SolidGeometry = std::variant<BoxSolid, CylinderSolid, CapsuleSolid, MeshSolid>;

@@ -459,6 +459,23 @@ TEST(BodyTest, WalkerFollowsThePathAtSpeed) {
   EXPECT_EQ(EvaluatePerson(p, 11.5).action, ActionKind::kStand);
 }
 
+// Like demo_cell's alice: walking at 1.2 m/s from t = 0. The velocity at
+// t = 0 is the walking speed, not half of it (nothing before the script).
+TEST(BodyTest, WalkerFromTheStartReportsItsSpeedAtTimeZero) {
+  Person p;
+  p.height_m = 1.72;
+  p.start_W = Vector3d(0.8, 0.9, 0.0);
+  Action walk = MakeAction(ActionKind::kWalk, 0.0, 10.0);
+  walk.path_W = {Vector3d(2.0, 0.9, 0.0), Vector3d(2.0, 2.6, 0.0)};
+  walk.speed_mps = 1.2;
+  p.actions.push_back(walk);
+  for (double t : {0.0, 0.5 * kFrameS, kFrameS}) {
+    const BodyState s = EvaluatePerson(p, t);
+    EXPECT_NEAR(s.velocity_W.norm(), 1.2, 0.05) << t;
+    EXPECT_GT(s.velocity_W.x(), 1.15) << t;
+  }
+}
+
 TEST(BodyTest, WalkCutShortStopsOnThePath) {
   Person p;
   Action walk = MakeAction(ActionKind::kWalk, 0.0, 2.0);

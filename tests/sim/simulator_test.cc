@@ -1,6 +1,10 @@
 // The simulator facade: cameras in parallel equal cameras one by one, capture
 // offsets, ground truth, and every shipped scene renders its people.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
+#include <optional>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -107,6 +111,47 @@ TEST(SimulatorTest, ColourFramesAreDeterministicAcrossThreadCounts) {
   for (int c = 0; c < 3; ++c) {
     EXPECT_EQ(a[c].width, 240);
     EXPECT_EQ(a[c].pixels, b[c].pixels) << "camera " << c;
+  }
+}
+
+// Every shipped scene renders every one of its people: at two times, the
+// centre of each person's torso projects onto foreground in some camera's
+// mask (seen at that camera's capture time). A person left out of the masks
+// would fail this for its scene.
+TEST(SimulatorTest, EveryShippedSceneRendersItsPeople) {
+  namespace fs = std::filesystem;
+  std::vector<fs::path> files;
+  for (const auto& entry : fs::directory_iterator(fs::path(HG_SOURCE_DIR) / "config" / "scenes")) {
+    if (entry.path().extension() == ".yaml") files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  ASSERT_GE(files.size(), 5U);
+  std::vector<common::ImageU8> masks;
+  for (const fs::path& file : files) {
+    const Scene scene = LoadScene(file.string());
+    EXPECT_FALSE(scene.people.empty()) << file;
+    Simulator simulator(scene, 2);
+    for (const double t_s : {1.0, 4.0}) {
+      simulator.RenderMasks(t_s, &masks);
+      for (const Person& person : scene.people) {
+        int seen_by = 0;  // Cameras whose mask covers the torso centre.
+        for (int c = 0; c < simulator.num_cameras(); ++c) {
+          const SceneCamera& camera = scene.cameras[c];
+          const BodyState state = EvaluatePerson(person, t_s + camera.time_offset_s);
+          const BodyCapsule& torso = state.parts[static_cast<int>(BodyPart::kTorso)];
+          const std::optional<Eigen::Vector2d> uv =
+              camera.model.Project(0.5 * (torso.a_W + torso.b_W));
+          if (!uv) continue;
+          const auto u = static_cast<int>(std::lround(uv->x()));
+          const auto v = static_cast<int>(std::lround(uv->y()));
+          const common::ImageU8& mask = masks[c];
+          if (u < 0 || v < 0 || u >= mask.width || v >= mask.height) continue;
+          if (mask.At(u, v) != 0) ++seen_by;
+        }
+        EXPECT_GT(seen_by, 0) << file.filename() << ": " << person.name << " at t = " << t_s
+                              << " s";
+      }
+    }
   }
 }
 

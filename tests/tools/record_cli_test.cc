@@ -1,7 +1,8 @@
 // End-to-end tests of recording: `hullguard record` on simulated cameras, the
 // recording replayed by `hullguard replay` (the same digest twice), a frame
-// that cannot be written reported in the summary and the exit code, and the
-// daemon's black box dumping on SIGUSR1 and when the status turns degraded.
+// that cannot be written reported in the summary and the exit code, the
+// daemon's black box dumping on SIGUSR1 and when the status turns degraded,
+// and `hullguard replay` checking synth recordings against their ground truth.
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -21,6 +22,7 @@
 
 #include "capture/recording.h"
 #include "geometry/camera_yaml.h"
+#include "sim/ground_truth.h"
 #include "support/run_tool.h"
 
 extern char** environ;
@@ -86,6 +88,8 @@ class RecordCliTest : public ::testing::Test {
         Hullguard("replay --config " + config + " --recording " + recording + " --digest");
     EXPECT_EQ(r.code, 0) << r.out << r.err;
     EXPECT_NE(r.out.find(" cycles at 30 Hz over "), std::string::npos) << r.out;
+    // Recorded cameras have no ground truth.
+    EXPECT_EQ(r.out.find("ground truth"), std::string::npos) << r.out;
     std::smatch m;
     const std::regex digest("digest ([0-9a-f]{16})");
     return std::regex_search(r.out, m, digest) ? std::string(m[1]) : std::string();
@@ -133,6 +137,11 @@ TEST_F(RecordCliTest, RecordsSimCamerasAndReplaysDeterministically) {
   const std::string first = ReplayDigest(Path("rec"));
   EXPECT_FALSE(first.empty());
   EXPECT_EQ(ReplayDigest(Path("rec")), first);
+  // Its cycles do not match frames of a ground truth.
+  const auto truth = Hullguard("replay --config " + Path("replay_rec.yaml") + " --recording " +
+                               Path("rec") + " --truth " + Path("sim.yaml"));
+  EXPECT_EQ(truth.code, 2) << truth.out << truth.err;
+  EXPECT_NE(truth.err.find("is not a synth recording"), std::string::npos) << truth.err;
 
   // The daemon plays it in real time (`source: replay`): every camera is live
   // at the first health report, 1 s in.
@@ -286,6 +295,107 @@ TEST_F(RecordCliTest, DaemonBlackBoxDumpsOnSigusr1AndWhenDegraded) {
   }
   EXPECT_GE(dumps, 1) << log;
   EXPECT_TRUE(cam2_lags) << log;
+}
+
+// What `hullguard replay` prints after its summary for a synth recording
+// with a ground truth; -1 each when the line is missing.
+struct TruthLine {
+  long long points = -1;
+  int frame_sets = -1;
+  long long free = -1;
+};
+
+TruthLine ParseTruthLine(const std::string& out) {
+  std::smatch m;
+  const std::regex line(
+      "\nground truth: ([0-9]+) points inside people over ([0-9]+) frame sets, ([0-9]+) in cells "
+      "published free\n");
+  if (!std::regex_search(out, m, line)) return {};
+  return {std::stoll(m[1]), std::stoi(m[2]), std::stoll(m[3])};
+}
+
+const std::string kDemoScene = std::string(HG_SOURCE_DIR) + "/config/scenes/demo_cell.yaml";
+const std::string kDemoConfig = std::string(HG_SOURCE_DIR) + "/config/demo.yaml";
+
+// A synth recording of the demo cell replays with every sampled point inside
+// a person in an occupied or occluded cell; so does the small recording of the
+// regression test, whose cameras capture 6 and 12 ms apart.
+TEST_F(RecordCliTest, ReplayChecksSynthRecordingsAgainstTheirGroundTruth) {
+  const auto synth =
+      Hullguard("synth --scene " + kDemoScene + " --frames 3 --masks --out " + Path("demo"));
+  ASSERT_EQ(synth.code, 0) << synth.out << synth.err;
+  const auto r = Hullguard("replay --config " + kDemoConfig + " --recording " + Path("demo"));
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  TruthLine truth = ParseTruthLine(r.out);
+  EXPECT_EQ(truth.frame_sets, 3) << r.out;
+  // Two people, 200 points each a frame; no capture offsets, so none is dropped.
+  EXPECT_EQ(truth.points, 3 * 2 * 200) << r.out;
+  EXPECT_EQ(truth.free, 0) << r.out;
+
+  // --frames checks the frame sets replayed, with the same points.
+  const auto two =
+      Hullguard("replay --config " + kDemoConfig + " --recording " + Path("demo") + " --frames 2");
+  EXPECT_EQ(two.code, 0) << two.out << two.err;
+  EXPECT_EQ(ParseTruthLine(two.out).frame_sets, 2) << two.out;
+
+  const std::string data = std::string(HG_SOURCE_DIR) + "/tests/data";
+  const auto small = Hullguard("replay --config " + data + "/small_cell_config.yaml --recording " +
+                               data + "/small_cell_recording");
+  EXPECT_EQ(small.code, 0) << small.out << small.err;
+  truth = ParseTruthLine(small.out);
+  EXPECT_EQ(truth.frame_sets, 12) << small.out;
+  // Points near the surface of a moving part are dropped (capture offsets).
+  EXPECT_GT(truth.points, 12 * 20) << small.out;
+  EXPECT_LT(truth.points, 12 * 200) << small.out;
+  EXPECT_EQ(truth.free, 0) << small.out;
+}
+
+// A ground truth that puts a person where the cameras certify the space free
+// (alice moved 2 m across the cell, in every frame) fails the replay, with
+// the points named; --truth and --no-truth pick the file or skip the check.
+TEST_F(RecordCliTest, ReplayFailsWhenAPointInsideAPersonIsPublishedFree) {
+  const auto synth =
+      Hullguard("synth --scene " + kDemoScene + " --frames 3 --masks --out " + Path("demo"));
+  ASSERT_EQ(synth.code, 0) << synth.out << synth.err;
+  const std::string file = Path("demo/ground_truth.yaml");
+  const sim::GroundTruth truth = sim::ReadGroundTruth(file);
+  sim::WriteGroundTruth(Path("original.yaml"), truth);
+  sim::GroundTruth moved = truth;
+  const Eigen::Vector3d shift(1.2, 1.6, 0.0);
+  for (sim::FrameTruth& frame : moved.frames) {
+    ASSERT_EQ(frame.people.size(), 2U);
+    ASSERT_EQ(frame.people[0].name, "alice");
+    sim::BodyState& body = frame.people[0].state;
+    for (sim::BodyCapsule& c : body.parts) {
+      c.a_W += shift;
+      c.b_W += shift;
+    }
+    body.centre_W += shift;
+  }
+  sim::WriteGroundTruth(file, moved);
+
+  const std::string replay = "replay --config " + kDemoConfig + " --recording " + Path("demo");
+  const auto r = Hullguard(replay);
+  EXPECT_EQ(r.code, 1) << r.out << r.err;
+  const TruthLine line = ParseTruthLine(r.out);
+  EXPECT_EQ(line.points, 3 * 2 * 200) << r.out;
+  // Most of alice's 600 points lie in free space; bob's are all covered.
+  EXPECT_GT(line.free, 300) << r.out;
+  EXPECT_LE(line.free, 600) << r.out;
+  EXPECT_NE(r.err.find(" points inside people lie in cells published free"), std::string::npos)
+      << r.err;
+  EXPECT_TRUE(std::regex_search(r.err, std::regex("\n  frame 0, alice \\([a-z_]+\\): point \\(")))
+      << r.err;
+
+  const auto original = Hullguard(replay + " --truth " + Path("original.yaml"));
+  EXPECT_EQ(original.code, 0) << original.out << original.err;
+  EXPECT_EQ(ParseTruthLine(original.out).free, 0) << original.out;
+
+  const auto skipped = Hullguard(replay + " --no-truth");
+  EXPECT_EQ(skipped.code, 0) << skipped.out << skipped.err;
+  EXPECT_NE(skipped.out.find("ground truth: not checked (--no-truth)"), std::string::npos)
+      << skipped.out;
+  EXPECT_NE(Hullguard(replay + " --no-truth --truth " + file).code, 0);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <variant>
 
 #include <gtest/gtest.h>
 
@@ -139,6 +140,77 @@ TEST_F(SynthCliTest, BadSceneNamesFileLineAndKey) {
   const auto missing = Hullguard("synth --scene " + Path("nope.yaml") + " --out " + Path("o"));
   EXPECT_EQ(missing.code, 2);
   EXPECT_NE(missing.err.find("nope.yaml"), std::string::npos) << missing.err;
+}
+
+// OUT/scene.yaml loads on its own: the meshes the scene names by relative
+// paths (paper_cell: meshes/robot.obj) are copied beside it.
+TEST_F(SynthCliTest, OutputSceneLoadsWithItsMeshes) {
+  const std::string scene_file = std::string(HG_SOURCE_DIR) + "/config/scenes/paper_cell.yaml";
+  const auto r = Hullguard("synth --scene " + scene_file + " --frames 1 --out " + Path("paper"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "paper" / "meshes" / "robot.obj"));
+  const sim::Scene original = sim::LoadScene(scene_file);
+  sim::Scene copy;
+  ASSERT_NO_THROW(copy = sim::LoadScene((dir_ / "paper" / "scene.yaml").string()));
+  ASSERT_EQ(copy.obstacles.size(), original.obstacles.size());
+  for (std::size_t i = 0; i < copy.obstacles.size(); ++i) {
+    const auto* mesh = std::get_if<sim::MeshSolid>(&copy.obstacles[i].geometry);
+    if (mesh == nullptr) continue;
+    EXPECT_EQ(mesh->mesh.vertices,
+              std::get<sim::MeshSolid>(original.obstacles[i].geometry).mesh.vertices);
+  }
+}
+
+// A relative mesh path that leaves the scene's folder cannot be copied beside
+// scene.yaml: bad input, before anything is written.
+TEST_F(SynthCliTest, MeshOutsideTheSceneFolderIsRefused) {
+  geometry::WriteObj(Path("box.obj"), geometry::TriangleMesh::Box(Eigen::Vector3d(1, 1, 0),
+                                                                  Eigen::Vector3d(2, 2, 1)));
+  fs::create_directories(dir_ / "scenes");
+  std::string scene = kScene;
+  scene.replace(scene.find("people:"), 0, "  - {name: box, mesh: {file: ../box.obj}}\n");
+  std::ofstream(Path("scenes/up.yaml")) << scene;
+  const auto r =
+      Hullguard("synth --scene " + Path("scenes/up.yaml") + " --frames 1 --out " + Path("up"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("../box.obj"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "up"));
+}
+
+// Writing over an earlier synth output leaves none of its frames behind.
+TEST_F(SynthCliTest, RerunIntoAnEarlierOutputLeavesNoStaleFrames) {
+  const std::string scene = " --scene " + Path("tiny.yaml") + " --out " + Path("out");
+  const auto first = Hullguard("synth" + scene + " --frames 3 --colour --masks");
+  ASSERT_EQ(first.code, 0) << first.err;
+  ASSERT_TRUE(fs::exists(dir_ / "out" / "masks" / "a" / "000002.png"));
+  const auto second = Hullguard("synth" + scene + " --frames 1");
+  ASSERT_EQ(second.code, 0) << second.err;
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "masks" / "a" / "000000.png"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "masks" / "a" / "000001.png"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "masks" / "b" / "000002.png"));
+  EXPECT_FALSE(fs::exists(dir_ / "out" / "colour"));
+  EXPECT_EQ(sim::ReadGroundTruth((dir_ / "out" / "ground_truth.yaml").string()).frames.size(), 1U);
+}
+
+// Any other non-empty folder is refused with one line naming it, and left as
+// it was; an empty one is used.
+TEST_F(SynthCliTest, NonEmptyFolderThatIsNoSynthOutputIsRefused) {
+  fs::create_directories(dir_ / "mine");
+  std::ofstream(Path("mine/notes.txt")) << "keep me\n";
+  const auto r =
+      Hullguard("synth --scene " + Path("tiny.yaml") + " --frames 1 --out " + Path("mine"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find(Path("mine")), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find('\n'), r.err.size() - 1) << "one line: " << r.err;
+  EXPECT_TRUE(fs::exists(dir_ / "mine" / "notes.txt"));
+  EXPECT_FALSE(fs::exists(dir_ / "mine" / "manifest.yaml"));
+  EXPECT_FALSE(fs::exists(dir_ / "mine" / "masks"));
+
+  fs::create_directories(dir_ / "empty");
+  const auto empty =
+      Hullguard("synth --scene " + Path("tiny.yaml") + " --frames 1 --out " + Path("empty"));
+  ASSERT_EQ(empty.code, 0) << empty.err;
+  EXPECT_TRUE(fs::exists(dir_ / "empty" / "masks" / "a" / "000000.png"));
 }
 
 std::string JsonField(const std::string& json, const std::string& key) {

@@ -1,13 +1,21 @@
 // `hullguard replay`: the daemon's pipeline run lock-step over a recording, as
 // fast as it goes and deterministically, with a digest of the output stream
-// for regression checks.
+// for regression checks, and for synth recordings a check of every cycle's
+// snapshot against the ground truth (no point inside a person published free).
 #include <algorithm>
+#include <array>
 #include <cinttypes>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
+#include <optional>
+#include <random>
 #include <string>
+#include <tuple>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "app/config.h"
 #include "app/pipeline_setup.h"
@@ -16,6 +24,7 @@
 #include "hullguard/commands.h"
 #include "hullguard/snapshot_picture.h"
 #include "pipeline/pipeline.h"
+#include "sim/ground_truth.h"
 
 namespace hg::tools {
 namespace {
@@ -28,6 +37,8 @@ struct ReplayFlags {
   bool digest = false;
   std::string expect;
   std::string snapshot;
+  std::string truth;  // Empty: the synth recording's ground_truth.yaml, if any.
+  bool no_truth = false;
 };
 
 // FNV-1a, 64 bit: enough to tell two output streams apart in a regression
@@ -70,6 +81,187 @@ void AddSnapshot(const pipeline::OccupancySnapshot& s, Digest* d) {
   }
 }
 
+// Ground truth check of a synth recording: points sampled inside every person
+// of truth frame i are looked up in the snapshot of frame set i. A point
+// inside a person must never lie in a cell the snapshot publishes free
+// (neither occupied nor occluded).
+//
+// Capture offsets: camera c captured frame i at the truth's time plus its
+// offset, so it saw each person up to max |offset| away from the pose in the
+// truth (and the snapshot is stamped at the newest capture time of the set).
+// A point counts only where it lies inside some body part deeper than that
+// part can move in max |offset|: its speed times max |offset|, plus 1 cm for
+// motion that is not straight within the frame; such a point was inside the
+// body at every camera's capture time, so inside every camera's silhouette.
+// A part's speed is the fastest of the person's velocity (of the feet, from
+// the truth) and the speeds of the part's ends between this truth frame and
+// its neighbours (a swinging forearm or shin moves faster than the feet).
+// Without offsets the truth is exactly what the cameras saw: no margin.
+//
+// No cycle is skipped. The snapshot has no background-learning state (the
+// background model reports all foreground while it learns), and a camera
+// without frames yet (CameraState::kStarting) certifies nothing: every
+// snapshot is conservative in every state, so skipping cycles would only
+// hide the failure this check looks for.
+//
+// Thread-compatible.
+class TruthCoverage {
+ public:
+  static constexpr int kPointsPerPerson = 200;
+  static constexpr double kMarginM = 0.01;
+  static constexpr std::size_t kShown = 5;  // Offending points printed.
+
+  TruthCoverage(sim::GroundTruth truth, double max_offset_s)
+      : truth_(std::move(truth)), max_offset_s_(max_offset_s) {}
+
+  [[nodiscard]] int truth_frames() const { return static_cast<int>(truth_.frames.size()); }
+
+  /// Samples the points of truth frame `frame` (deterministic: a seed per
+  /// frame) and looks them up in `s`. Frames past the truth are not checked.
+  void Check(int frame, const pipeline::OccupancySnapshot& s) {
+    if (frame >= truth_frames()) return;
+    ++frame_sets_;
+    const std::vector<pipeline::GridRun>& occupied = SortedRuns(s.occupied, &occupied_scratch_);
+    const std::vector<pipeline::GridRun>& occluded = SortedRuns(s.occluded, &occluded_scratch_);
+    const sim::FrameTruth& ft = truth_.frames[static_cast<std::size_t>(frame)];
+    std::mt19937_64 rng(0x9e3779b97f4a7c15ULL * static_cast<std::uint64_t>(frame + 1));
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    for (std::size_t person = 0; person < ft.people.size(); ++person) {
+      const sim::BodyState& body = ft.people[person].state;
+      const std::array<double, sim::kNumBodyParts> margin = Margins(frame, person);
+      for (int k = 0; k < kPointsPerPerson; ++k) {
+        // Uniform over parts, as tools/hullguard/scene_engine.cc samples:
+        // small parts (hands, feet) get more points, where errors show first.
+        const std::size_t part =
+            static_cast<std::size_t>(u01(rng) * sim::kNumBodyParts) % sim::kNumBodyParts;
+        const sim::BodyCapsule& c = body.parts[part];
+        const Eigen::Vector3d lo = c.a_W.cwiseMin(c.b_W).array() - c.radius_m;
+        const Eigen::Vector3d hi = c.a_W.cwiseMax(c.b_W).array() + c.radius_m;
+        Eigen::Vector3d p_W;
+        do {
+          p_W = lo + Eigen::Vector3d(u01(rng), u01(rng), u01(rng)).cwiseProduct(hi - lo);
+        } while (Depth(c, p_W) < 0.0);
+        bool deep = false;
+        for (std::size_t j = 0; j < body.parts.size() && !deep; ++j) {
+          deep = Depth(body.parts[j], p_W) >= margin[j];
+        }
+        if (!deep) continue;
+        const std::optional<std::array<int, 3>> cell = CellOf(s, p_W);
+        if (!cell) continue;  // Outside the bounds: nothing is published there.
+        ++points_;
+        if (InRuns(occupied, *cell) || InRuns(occluded, *cell)) continue;
+        if (free_++ < static_cast<std::int64_t>(kShown)) {
+          char line[256];
+          std::snprintf(line, sizeof(line),
+                        "frame %d, %s (%s): point (%.3f, %.3f, %.3f) m is in cell (%d, %d, %d) "
+                        "at depth %d, published free",
+                        frame, ft.people[person].name.c_str(),
+                        sim::BodyPartName(static_cast<sim::BodyPart>(part)), p_W.x(), p_W.y(),
+                        p_W.z(), (*cell)[0], (*cell)[1], (*cell)[2], s.depth);
+          offenders_.emplace_back(line);
+        }
+      }
+    }
+  }
+
+  [[nodiscard]] std::int64_t points() const { return points_; }
+  [[nodiscard]] std::int64_t published_free() const { return free_; }
+  [[nodiscard]] int frame_sets() const { return frame_sets_; }
+  /// The first kShown points published free, one line each.
+  [[nodiscard]] const std::vector<std::string>& offenders() const { return offenders_; }
+
+ private:
+  // How deep p_W lies inside capsule c (m): its radius minus the distance to
+  // its segment; negative outside. At most the distance to the surface of
+  // the whole body, which is the union of the capsules.
+  static double Depth(const sim::BodyCapsule& c, const Eigen::Vector3d& p_W) {
+    const Eigen::Vector3d ab = c.b_W - c.a_W;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p_W - c.a_W).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return c.radius_m - (p_W - (c.a_W + t * ab)).norm();
+  }
+
+  // Per part of person `person` in truth frame `frame`: how deep a point must
+  // lie in it to stay inside at every capture time (see the class comment).
+  std::array<double, sim::kNumBodyParts> Margins(int frame, std::size_t person) const {
+    std::array<double, sim::kNumBodyParts> margin{};
+    if (max_offset_s_ <= 0.0) return margin;
+    const sim::FrameTruth& ft = truth_.frames[static_cast<std::size_t>(frame)];
+    const sim::PersonTruth& pt = ft.people[person];
+    std::array<double, sim::kNumBodyParts> speed_mps{};
+    speed_mps.fill(pt.state.velocity_W.norm());
+    for (int other : {frame - 1, frame + 1}) {
+      if (other < 0 || other >= truth_frames()) continue;
+      const sim::FrameTruth& o = truth_.frames[static_cast<std::size_t>(other)];
+      const double dt_s = std::abs(o.time_s - ft.time_s);
+      if (dt_s <= 0.0) continue;
+      for (const sim::PersonTruth& q : o.people) {
+        if (q.name != pt.name) continue;
+        for (std::size_t j = 0; j < margin.size(); ++j) {
+          const sim::BodyCapsule& a = pt.state.parts[j];
+          const sim::BodyCapsule& b = q.state.parts[j];
+          speed_mps[j] = std::max(
+              {speed_mps[j], (a.a_W - b.a_W).norm() / dt_s, (a.b_W - b.b_W).norm() / dt_s});
+        }
+      }
+    }
+    for (std::size_t j = 0; j < margin.size(); ++j) {
+      margin[j] = speed_mps[j] * max_offset_s_ + kMarginM;
+    }
+    return margin;
+  }
+
+  // The published cell holding p_W, nullopt outside the bounds.
+  static std::optional<std::array<int, 3>> CellOf(const pipeline::OccupancySnapshot& s,
+                                                  const Eigen::Vector3d& p_W) {
+    const int n = 1 << s.depth;
+    std::array<int, 3> cell{};
+    for (int axis = 0; axis < 3; ++axis) {
+      const double lo = s.bounds.min[axis];
+      const double hi = s.bounds.max[axis];
+      if (!(p_W[axis] >= lo && p_W[axis] <= hi)) return std::nullopt;
+      const double i = std::floor((p_W[axis] - lo) / (hi - lo) * n);
+      cell[static_cast<std::size_t>(axis)] = std::clamp(static_cast<int>(i), 0, n - 1);
+    }
+    return cell;
+  }
+
+  static auto Key(const pipeline::GridRun& r) { return std::make_tuple(r.z, r.y, r.x); }
+
+  // The pipeline emits runs in cell order (z, then y, then x); a copy is
+  // sorted only if some other producer did not.
+  static const std::vector<pipeline::GridRun>& SortedRuns(
+      const std::vector<pipeline::GridRun>& runs, std::vector<pipeline::GridRun>* scratch) {
+    const auto less = [](const pipeline::GridRun& a, const pipeline::GridRun& b) {
+      return Key(a) < Key(b);
+    };
+    if (std::is_sorted(runs.begin(), runs.end(), less)) return runs;
+    scratch->assign(runs.begin(), runs.end());
+    std::sort(scratch->begin(), scratch->end(), less);
+    return *scratch;
+  }
+
+  static bool InRuns(const std::vector<pipeline::GridRun>& runs, const std::array<int, 3>& cell) {
+    const auto key = std::make_tuple(cell[2], cell[1], cell[0]);
+    // The last run starting at or before the cell.
+    auto it = std::upper_bound(runs.begin(), runs.end(), key,
+                               [](const std::tuple<int, int, int>& k, const pipeline::GridRun& r) {
+                                 return k < std::tuple<int, int, int>(r.z, r.y, r.x);
+                               });
+    if (it == runs.begin()) return false;
+    --it;
+    return it->z == cell[2] && it->y == cell[1] && cell[0] < it->x + it->length;
+  }
+
+  sim::GroundTruth truth_;
+  double max_offset_s_ = 0.0;
+  std::int64_t points_ = 0;
+  std::int64_t free_ = 0;
+  int frame_sets_ = 0;
+  std::vector<std::string> offenders_;
+  std::vector<pipeline::GridRun> occupied_scratch_, occluded_scratch_;
+};
+
 int RunReplay(const ReplayFlags& f) {
   const app::Config config = app::LoadConfig(f.config);
   pipeline::PipelineOptions options = app::MakePipelineOptions(config);
@@ -90,6 +282,29 @@ int RunReplay(const ReplayFlags& f) {
     for (const capture::RecordedFrame& rf : r.frames) end_ns = std::max(end_ns, rf.time_ns);
     // Timeouts are measured between recorded stamps here, as in the daemon.
     cameras.push_back({c.model, nullptr, c.timeout_ms});
+  }
+  // The ground truth, read before anything runs (a bad file is bad input).
+  std::optional<TruthCoverage> truth;
+  std::string truth_note;  // Why a synth recording is not checked.
+  std::string truth_path = f.truth;
+  if (!f.truth.empty() && !synth) {
+    throw common::ConfigError("--truth " + f.truth + ": " + f.recording +
+                              " is not a synth recording (truth frames match frame sets by index)");
+  }
+  if (truth_path.empty() && synth && !f.no_truth) {
+    truth_path = (std::filesystem::path(f.recording) / "ground_truth.yaml").string();
+    if (!std::filesystem::exists(truth_path)) {
+      truth_note = "no ground_truth.yaml in the recording";
+      truth_path.clear();
+    }
+  }
+  if (f.no_truth) truth_note = "--no-truth";
+  if (!truth_path.empty()) {
+    double max_offset_s = 0.0;
+    for (const auto& r : readers) {
+      max_offset_s = std::max(max_offset_s, std::abs(r->recording().time_offset_s));
+    }
+    truth.emplace(sim::ReadGroundTruth(truth_path), max_offset_s);
   }
   pipeline::Pipeline pipeline(options, std::move(cameras), app::LoadObstacles(config), nullptr);
 
@@ -114,10 +329,20 @@ int RunReplay(const ReplayFlags& f) {
       last = pipeline.Step(newest);
       degraded += last->health.degraded ? 1 : 0;
       AddSnapshot(*last, &digest);
+      if (truth) truth->Check(i, *last);
     }
     std::printf("replay: %d frame sets of %zu cameras, %" PRIu64
                 " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
                 frames, readers.size(), missing, degraded);
+    if (truth) {
+      std::printf(
+          "ground truth: %" PRId64 " points inside people over %d frame sets, %" PRId64
+          " in cells published free%s\n",
+          truth->points(), truth->frame_sets(), truth->published_free(),
+          truth->truth_frames() < frames ? " (the truth has fewer frames than the replay)" : "");
+    } else {
+      std::printf("ground truth: not checked (%s)\n", truth_note.c_str());
+    }
   } else {
     // Recorded cameras run on their own clocks: a cycle every 1 / rate_hz of
     // recording time, after every frame captured by then has been fed in
@@ -164,12 +389,21 @@ int RunReplay(const ReplayFlags& f) {
     WriteSnapshotPicture(boxes, last->bounds, models, app::LoadObstacles(config),
                          "Last cycle of the replay.", f.snapshot);
   }
+  int code = kExitOk;
+  if (truth && truth->published_free() > 0) {
+    std::fprintf(stderr,
+                 "hullguard replay: %" PRId64
+                 " points inside people lie in cells published free; the first:\n",
+                 truth->published_free());
+    for (const std::string& line : truth->offenders()) std::fprintf(stderr, "  %s\n", line.c_str());
+    code = kExitFailure;
+  }
   if (!f.expect.empty() && f.expect != digest.Hex()) {
     std::fprintf(stderr, "hullguard replay: digest %s differs from the expected %s\n",
                  digest.Hex().c_str(), f.expect.c_str());
-    return kExitFailure;
+    code = kExitFailure;
   }
-  return kExitOk;
+  return code;
 }
 
 }  // namespace
@@ -194,6 +428,13 @@ void RegisterReplay(CLI::App& app, int* exit_code) {
   cmd->add_flag("--digest", flags->digest, "Print a digest of the output stream");
   cmd->add_option("--expect", flags->expect, "Fail (exit 1) unless the digest equals this");
   cmd->add_option("--snapshot", flags->snapshot, "Write a picture of the last cycle (PNG)");
+  CLI::Option* truth =
+      cmd->add_option("--truth", flags->truth,
+                      "Ground truth to check a synth recording against (default: its "
+                      "ground_truth.yaml); fail (exit 1) if a point inside a person is free")
+          ->check(CLI::ExistingFile);
+  cmd->add_flag("--no-truth", flags->no_truth, "Do not check against the ground truth")
+      ->excludes(truth);
   cmd->callback([flags, exit_code] {
     try {
       *exit_code = RunReplay(*flags);

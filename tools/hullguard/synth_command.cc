@@ -5,6 +5,9 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <string>
+#include <variant>
+#include <vector>
 
 #include <yaml-cpp/yaml.h>
 
@@ -59,19 +62,82 @@ void WriteManifest(const fs::path& path, const sim::Scene& scene, const SynthFla
   common::WriteYamlFile(path.string(), out);
 }
 
+/// A file to copy from `from` to `to` (relative to the output folder).
+struct FileCopy {
+  fs::path from;
+  fs::path to;
+};
+
+/// The scene file as scene.yaml, and every mesh file it names by a relative
+/// path at that path beside it, so that OUT/scene.yaml loads as the scene did.
+/// Absolute mesh paths stay as they are.
+/// @throws common::ConfigError for a relative mesh path that leaves the scene's folder.
+std::vector<FileCopy> SceneFiles(const sim::Scene& scene, const std::string& scene_file) {
+  std::vector<FileCopy> files = {{scene_file, "scene.yaml"}};
+  for (const auto* solids : {&scene.obstacles, &scene.foreground_objects}) {
+    for (const sim::Solid& solid : *solids) {
+      const auto* mesh = std::get_if<sim::MeshSolid>(&solid.geometry);
+      if (mesh == nullptr || fs::path(mesh->file).is_absolute()) continue;
+      const fs::path to = fs::path(mesh->file).lexically_normal();
+      if (to.empty() || *to.begin() == "..") {
+        throw common::ConfigError(scene_file + ": mesh file '" + mesh->file +
+                                  "' lies outside the scene's folder, so synth cannot copy it "
+                                  "beside scene.yaml (use a path inside it or an absolute one)");
+      }
+      files.push_back({mesh->loaded_from, to});
+    }
+  }
+  return files;
+}
+
+/// Makes `out` ready for a synth output: a new or empty folder as it is; an
+/// earlier synth output (manifest.yaml with a `synth` map) loses its frames
+/// and ground truth, so that no stale frame outlives a shorter run.
+/// @throws common::ConfigError for any other non-empty folder.
+void PrepareOutput(const fs::path& out) {
+  std::error_code ec;
+  if (!fs::exists(out, ec)) return;
+  if (!fs::is_directory(out, ec)) throw common::ConfigError(out.string() + ": not a folder");
+  if (fs::is_empty(out, ec)) return;
+  bool synth_output = false;
+  try {
+    const YAML::Node manifest = common::LoadYamlFile((out / "manifest.yaml").string());
+    synth_output = manifest.IsMap() && manifest["synth"] && manifest["synth"].IsMap();
+  } catch (const common::ConfigError&) {
+    synth_output = false;  // No manifest, or not YAML: not ours to clear.
+  }
+  if (!synth_output) {
+    throw common::ConfigError(out.string() +
+                              ": folder is not empty and holds no synth output (manifest.yaml); "
+                              "choose a new or empty folder");
+  }
+  for (const char* stale : {"masks", "colour", "ground_truth.yaml"}) {
+    fs::remove_all(out / stale, ec);
+    if (ec) throw common::ConfigError((out / stale).string() + ": cannot remove: " + ec.message());
+  }
+}
+
 int RunSynth(const SynthFlags& f) {
   const auto t_begin = std::chrono::steady_clock::now();
   const bool masks = f.masks || !f.colour;  // Masks unless only colour was asked for.
   sim::Scene scene = sim::LoadScene(f.scene);
+  const std::vector<FileCopy> scene_files = SceneFiles(scene, f.scene);
   const fs::path out(f.out);
+  PrepareOutput(out);
   std::error_code ec;
   for (const sim::SceneCamera& c : scene.cameras) {
     if (masks) fs::create_directories(out / "masks" / c.model.name, ec);
     if (!ec && f.colour) fs::create_directories(out / "colour" / c.model.name, ec);
     if (ec) throw common::ConfigError(f.out + ": cannot create directories: " + ec.message());
   }
-  fs::copy_file(f.scene, out / "scene.yaml", fs::copy_options::overwrite_existing, ec);
-  if (ec) throw common::ConfigError((out / "scene.yaml").string() + ": " + ec.message());
+  for (const FileCopy& file : scene_files) {
+    const fs::path to = out / file.to;
+    fs::create_directories(to.parent_path(), ec);
+    // Synthesising from an earlier output's own scene.yaml: the files are in place.
+    const bool in_place = !ec && fs::exists(to, ec) && fs::equivalent(file.from, to, ec);
+    if (!ec && !in_place) fs::copy_file(file.from, to, fs::copy_options::overwrite_existing, ec);
+    if (ec) throw common::ConfigError(to.string() + ": " + ec.message());
+  }
   geometry::WriteCamerasFile((out / "cameras.yaml").string(), scene.CameraModels());
   geometry::TriangleMesh obstacles;
   for (const geometry::TriangleMesh& m : scene.ObstacleMeshes()) obstacles.Append(m);
@@ -127,7 +193,9 @@ void RegisterSynth(CLI::App& app, int* exit_code) {
   cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
   cmd->add_option("--frames", flags->frames, "Number of frames")->check(CLI::Range(1, 1000000));
   cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)");
-  cmd->add_option("--out", flags->out, "Output directory (docs/synth.md)")->required();
+  cmd->add_option("--out", flags->out,
+                  "Output folder: new, empty or an earlier synth output (docs/synth.md)")
+      ->required();
   cmd->add_flag("--colour", flags->colour, "Write colour frames");
   cmd->add_flag("--masks", flags->masks,
                 "Write ground-truth masks (the default unless only --colour is given)");
