@@ -14,7 +14,11 @@ struct Box3 {
   [[nodiscard]] bool Contains(const Eigen::Vector3d& p_W) const {
     return (p_W.array() >= min.array()).all() && (p_W.array() <= max.array()).all();
   }
-  [[nodiscard]] bool IsValid() const { return (max.array() > min.array()).all(); }
+  /// Finite corners and max > min on every axis (NaN and infinity are invalid: an
+  /// infinite box has no finite cells and a NaN one contains nothing).
+  [[nodiscard]] bool IsValid() const {
+    return min.allFinite() && max.allFinite() && (max.array() > min.array()).all();
+  }
   [[nodiscard]] Eigen::Vector3d Size() const { return max - min; }
   [[nodiscard]] double Volume() const { return Size().prod(); }
   /// Corner i, bit 0 selects x max, bit 1 y max, bit 2 z max.

@@ -18,7 +18,8 @@ void WriteOccupiedPly(const Octree& tree, const std::string& path) {
   });
   std::ofstream out(path);
   if (!out) throw common::ConfigError(path + ": cannot open for writing");
-  out << "ply\nformat ascii 1.0\ncomment hullguard occupied leaves as boxes\n"
+  out << "ply\nformat ascii 1.0\ncomment hullguard occupied (red 200 40 40) and occluded (grey 128 "
+         "128 128) leaves as boxes\n"
       << "element vertex " << 8 * leaves.size()
       << "\nproperty float x\nproperty float y\nproperty float z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\n"

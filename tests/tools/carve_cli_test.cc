@@ -1,9 +1,14 @@
 // End-to-end tests of `hullguard carve`: real files, real process, exit codes.
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -12,6 +17,7 @@
 #include "scene/demo_cell.h"
 #include "scene/exact_mask.h"
 #include "silhouette/mask_io.h"
+#include "support/dense_carve.h"
 #include "support/random_scene.h"
 #include "support/run_tool.h"
 
@@ -24,6 +30,84 @@ using testing::ProcessResult;
 
 ProcessResult Hullguard(const std::string& args) {
   return testing::RunTool(HG_HULLGUARD_BIN, args);
+}
+
+std::vector<std::string> Lines(const std::string& text) {
+  std::vector<std::string> lines;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+// Parses the one flat JSON object `--json` prints: {"key": number, ...} and a
+// newline, numbers in JSON's grammar (no nan, no inf). Fails the test otherwise.
+std::map<std::string, double> ParseFlatJson(const std::string& text) {
+  std::map<std::string, double> out;
+  std::size_t i = 0;
+  auto skip_space = [&] {
+    while (i < text.size() && (text[i] == ' ' || text[i] == '\n')) ++i;
+  };
+  auto expect = [&](char c) {
+    skip_space();
+    if (i < text.size() && text[i] == c) {
+      ++i;
+      return true;
+    }
+    ADD_FAILURE() << "expected '" << c << "' at " << i << " in " << text;
+    return false;
+  };
+  if (text.empty() || text.front() != '{' || text.back() != '\n') {
+    ADD_FAILURE() << "not one JSON object and a newline: " << text;
+    return out;
+  }
+  if (!expect('{')) return out;
+  while (true) {
+    if (!expect('"')) return out;
+    const std::size_t end = text.find('"', i);
+    if (end == std::string::npos) {
+      ADD_FAILURE() << "unterminated key in " << text;
+      return out;
+    }
+    const std::string key = text.substr(i, end - i);
+    i = end + 1;
+    if (!expect(':')) return out;
+    skip_space();
+    const char* start = text.c_str() + i;
+    char* stop = nullptr;
+    const double value = std::strtod(start, &stop);
+    const std::string number(start, static_cast<std::size_t>(stop - start));
+    // JSON numbers: optional '-', a digit first, finite.
+    const std::size_t digit = !number.empty() && number[0] == '-' ? 1 : 0;
+    if (stop == start || number.size() <= digit || !std::isdigit(number[digit]) ||
+        !std::isfinite(value) || number.find_first_of("xXnNiI") != std::string::npos) {
+      ADD_FAILURE() << key << ": not a JSON number in " << text;
+      return out;
+    }
+    EXPECT_EQ(out.count(key), 0u) << "duplicate key " << key;
+    out[key] = value;
+    i += number.size();
+    skip_space();
+    if (i < text.size() && text[i] == ',') {
+      ++i;
+      continue;
+    }
+    if (!expect('}')) return out;
+    skip_space();
+    EXPECT_EQ(i, text.size()) << "trailing text in " << text;
+    return out;
+  }
+}
+
+// A camera K/position/look_at entry of a cameras file.
+std::string LookAtCameraYaml(const std::string& name, int width, int height,
+                             const std::string& position, const std::string& look_at) {
+  const double f = 0.9 * width;
+  std::ostringstream s;
+  s << "  - name: " << name << "\n    width: " << width << "\n    height: " << height
+    << "\n    K: [" << f << ", 0, " << (width - 1) / 2.0 << ", 0, " << f << ", "
+    << (height - 1) / 2.0 << ", 0, 0, 1]\n    position: " << position
+    << "\n    look_at: " << look_at << "\n";
+  return s.str();
 }
 
 class CarveCliTest : public ::testing::Test {
@@ -65,9 +149,7 @@ class CarveCliTest : public ::testing::Test {
 };
 
 TEST_F(CarveCliTest, QueryClassifiesPointsInOrder) {
-  std::ofstream q(Path("q.txt"));
-  const auto* sphere_or_other = &scene_.objects[0];
-  Eigen::Vector3d inside = std::visit(
+  const Eigen::Vector3d inside = std::visit(
       [](const auto& s) -> Eigen::Vector3d {
         using T = std::decay_t<decltype(s)>;
         if constexpr (std::is_same_v<T, scene::Capsule>)
@@ -75,36 +157,196 @@ TEST_F(CarveCliTest, QueryClassifiesPointsInOrder) {
         else
           return s.centre_W;
       },
-      *sphere_or_other);
+      scene_.objects[0]);
+  std::ofstream q(Path("q.txt"));
+  q.precision(17);
   q << inside.x() << " " << inside.y() << " " << inside.z() << "\n";
-  q << "# a comment\n5 5 5\n0.001 0.001 1.999\n";
+  // Coordinates are echoed as written: 1.0000000001 must not come back as 1.
+  q << "# a comment\n5 5 5\n\n0.001 0.001 1.999\n  1.0000000001\t0.5   0.5e0 \n";
   q.close();
+  // With exact boundaries the octree equals the brute-force oracle cell by cell.
+  const ProcessResult r = Hullguard(Base() + " --boundary-coarsening 0 --query " + Path("q.txt"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::vector<std::string> lines = Lines(r.out);
+  ASSERT_EQ(lines.size(), 4u) << r.out;
+
+  const std::vector<common::ImageU8> masks = testing::RenderMasks(scene_.cameras, scene_.objects);
+  std::vector<const common::ImageU8*> mask_ptrs;
+  for (const auto& m : masks) mask_ptrs.push_back(&m);
+  const common::Box3 bounds{Eigen::Vector3d::Zero(), Eigen::Vector3d::Constant(2.0)};
+  const testing::DenseGrid oracle = testing::DenseCarve(bounds, 6, scene_.cameras, mask_ptrs, {});
+  auto expected_state = [&](const Eigen::Vector3d& p_W) -> std::string {
+    const Eigen::Vector3d cell = (p_W - bounds.min).cwiseQuotient(bounds.Size()) * 64.0;
+    const std::uint8_t state = oracle.states[oracle.Index(static_cast<std::uint32_t>(cell.x()),
+                                                          static_cast<std::uint32_t>(cell.y()),
+                                                          static_cast<std::uint32_t>(cell.z()))];
+    switch (static_cast<octree::LeafState>(state)) {
+      case octree::LeafState::kFree:
+        return "free";
+      case octree::LeafState::kOccupied:
+        return "occupied";
+      case octree::LeafState::kOccluded:
+        return "occluded";
+    }
+    return "?";
+  };
+  EXPECT_EQ(expected_state(inside), "occupied");  // An object is never free.
+  EXPECT_NE(lines[0].find(" occupied"), std::string::npos) << lines[0];
+  EXPECT_EQ(lines[1], "5 5 5 outside");
+  EXPECT_EQ(lines[2], "0.001 0.001 1.999 " + expected_state({0.001, 0.001, 1.999}));
+  EXPECT_EQ(lines[3], "1.0000000001 0.5 0.5e0 " + expected_state({1.0000000001, 0.5, 0.5}));
+}
+
+TEST_F(CarveCliTest, QueryFileWithoutPointsPrintsNothing) {
+  std::ofstream(Path("q.txt")) << "# only a comment\n\n   \n";
   const ProcessResult r = Hullguard(Base() + " --query " + Path("q.txt"));
   ASSERT_EQ(r.code, 0) << r.err;
-  std::istringstream lines(r.out);
-  std::string l1, l2, l3;
-  std::getline(lines, l1);
-  std::getline(lines, l2);
-  std::getline(lines, l3);
-  EXPECT_NE(l1.find("occupied"), std::string::npos) << l1;
-  EXPECT_EQ(l2, "5 5 5 outside");
-  EXPECT_TRUE(l3.find(" free") != std::string::npos || l3.find(" occupied") != std::string::npos ||
-              l3.find(" occluded") != std::string::npos)
-      << l3;
+  EXPECT_EQ(r.out, "");
+  EXPECT_EQ(r.err, "");
+}
+
+TEST_F(CarveCliTest, ThresholdChoosesForeground) {
+  // One camera looking down at the middle of the cell, a mask of grey 100
+  // everywhere: background at the default threshold (127), foreground above 50.
+  std::ofstream(Path("down.yaml")) << "cameras:\n"
+                                   << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
+  silhouette::WriteGreyImage(Path("grey100.png"), common::ImageU8(64, 48, 100));
+  std::ofstream(Path("q.txt")) << "1 1 1\n";
+  const std::string base = "carve --cameras " + Path("down.yaml") + " --masks " +
+                           Path("grey100.png") + " --bounds 0 0 0 2 2 2 --depth 4 --query " +
+                           Path("q.txt");
+  const ProcessResult background = Hullguard(base);
+  ASSERT_EQ(background.code, 0) << background.err;
+  EXPECT_EQ(background.out, "1 1 1 free\n");
+  const ProcessResult foreground = Hullguard(base + " --threshold 50");
+  ASSERT_EQ(foreground.code, 0) << foreground.err;
+  EXPECT_EQ(foreground.out, "1 1 1 occupied\n");
+  const ProcessResult at_value = Hullguard(base + " --threshold 100");  // Strictly greater.
+  ASSERT_EQ(at_value.code, 0) << at_value.err;
+  EXPECT_EQ(at_value.out, "1 1 1 free\n");
+}
+
+TEST_F(CarveCliTest, ProjectionMatrixCameraCarvesLikeKRt) {
+  // The same cameras as P = s K [R | t], each with its own scale.
+  std::ofstream p(Path("p.yaml"));
+  p.precision(17);
+  p << "cameras:\n";
+  for (std::size_t c = 0; c < scene_.cameras.size(); ++c) {
+    const geometry::CameraModel& cam = scene_.cameras[c];
+    Eigen::Matrix<double, 3, 4> Rt;
+    Rt << cam.R_CW, cam.t_CW;
+    const Eigen::Matrix<double, 3, 4> P = (0.5 + static_cast<double>(c)) * cam.K * Rt;
+    p << "  - name: " << cam.name << "\n    width: " << cam.width << "\n    height: " << cam.height
+      << "\n    P: [";
+    for (int i = 0; i < 12; ++i) p << (i ? ", " : "") << P(i / 4, i % 4);
+    p << "]\n";
+  }
+  p.close();
+  std::ofstream q(Path("q.txt"));
+  for (double x = 0.05; x < 2; x += 0.3) {
+    for (double y = 0.05; y < 2; y += 0.3) {
+      for (double z = 0.05; z < 2; z += 0.3) q << x << " " << y << " " << z << "\n";
+    }
+  }
+  q.close();
+  const std::string rest = " --masks" + Masks() + " --bounds 0 0 0 2 2 2 --depth 6";
+  const ProcessResult krt = Hullguard("carve --cameras " + Path("cams.yaml") + rest + " --json");
+  const ProcessResult proj = Hullguard("carve --cameras " + Path("p.yaml") + rest + " --json");
+  ASSERT_EQ(krt.code, 0) << krt.err;
+  ASSERT_EQ(proj.code, 0) << proj.err;
+  const auto a = ParseFlatJson(krt.out);
+  const auto b = ParseFlatJson(proj.out);
+  for (const char* key : {"occupied_volume_m3", "occluded_volume_m3", "free_volume_m3"}) {
+    ASSERT_EQ(a.count(key), 1u) << key;
+    ASSERT_EQ(b.count(key), 1u) << key;
+    EXPECT_NEAR(a.at(key), b.at(key), 1e-9) << key;
+  }
+  EXPECT_EQ(a.at("leaves"), b.at("leaves"));
+  const ProcessResult krt_q =
+      Hullguard("carve --cameras " + Path("cams.yaml") + rest + " --query " + Path("q.txt"));
+  const ProcessResult proj_q =
+      Hullguard("carve --cameras " + Path("p.yaml") + rest + " --query " + Path("q.txt"));
+  ASSERT_EQ(krt_q.code, 0) << krt_q.err;
+  EXPECT_EQ(Lines(krt_q.out).size(), 7u * 7u * 7u);
+  EXPECT_EQ(krt_q.out, proj_q.out);
 }
 
 TEST_F(CarveCliTest, JsonAndPly) {
-  const ProcessResult r = Hullguard(Base() + " --threads 2 --json --out " + Path("hull.ply") +
-                                    " --snapshot " + Path("view.png"));
+  // A solid obstacle: no camera sees inside it, so the result has occluded leaves.
+  geometry::WriteObj(
+      Path("block.obj"),
+      geometry::TriangleMesh::Box(Eigen::Vector3d::Constant(0.2), Eigen::Vector3d::Constant(0.6)));
+  const ProcessResult r =
+      Hullguard(Base() + " --threads 2 --json --obstacles " + Path("block.obj") + " --out " +
+                Path("hull.ply") + " --snapshot " + Path("view.png"));
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const char* key : {"\"occupied_volume_m3\"", "\"leaves\"", "\"nodes\"", "\"update_ms\""}) {
-    EXPECT_NE(r.out.find(key), std::string::npos) << key << " in " << r.out;
+  const std::map<std::string, double> json = ParseFlatJson(r.out);
+  for (const char* key : {"occupied_volume_m3", "occluded_volume_m3", "free_volume_m3", "leaves",
+                          "nodes", "update_ms"}) {
+    EXPECT_EQ(json.count(key), 1u) << key << " in " << r.out;
   }
+  for (const char* key : {"occupied_volume_m3", "occluded_volume_m3", "free_volume_m3"}) {
+    ASSERT_EQ(json.count(key), 1u) << key;
+  }
+  EXPECT_NEAR(
+      json.at("occupied_volume_m3") + json.at("occluded_volume_m3") + json.at("free_volume_m3"),
+      8.0, 1e-6);  // %.9g
+
+  // PLY: the header's counts match the body; every leaf is 8 vertices of one
+  // colour (occupied red, occluded grey) and 6 quadrilaterals; the boxes' volumes
+  // add up to the JSON's occupied and occluded volumes.
   std::ifstream ply(Path("hull.ply"));
-  std::string magic;
-  ply >> magic;
-  EXPECT_EQ(magic, "ply");
-  EXPECT_GT(fs::file_size(Path("hull.ply")), 100u);
+  std::string line;
+  std::getline(ply, line);
+  EXPECT_EQ(line, "ply");
+  long long vertices = -1, faces = -1;
+  bool end_header = false;
+  while (!end_header && std::getline(ply, line)) {
+    std::istringstream ss(line);
+    std::string word, element;
+    long long count = 0;
+    ss >> word;
+    if (word == "element" && ss >> element >> count)
+      (element == "vertex" ? vertices : faces) = count;
+    end_header = word == "end_header";
+  }
+  ASSERT_TRUE(end_header);
+  ASSERT_GT(vertices, 0);
+  EXPECT_EQ(vertices % 8, 0);
+  EXPECT_EQ(faces, vertices / 8 * 6);
+  std::vector<std::string> body;
+  while (std::getline(ply, line)) body.push_back(line);
+  ASSERT_EQ(static_cast<long long>(body.size()), vertices + faces);
+  std::map<std::string, double> volume;  // By colour.
+  for (long long box = 0; box < vertices / 8; ++box) {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e9), hi = -lo;
+    std::string colour;
+    for (long long v = 8 * box; v < 8 * box + 8; ++v) {
+      std::istringstream ss(body[v]);
+      Eigen::Vector3d p;
+      int red = 0, green = 0, blue = 0;
+      ASSERT_TRUE(ss >> p.x() >> p.y() >> p.z() >> red >> green >> blue) << body[v];
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+      const std::string c =
+          std::to_string(red) + " " + std::to_string(green) + " " + std::to_string(blue);
+      if (v == 8 * box) colour = c;
+      EXPECT_EQ(c, colour) << "vertex " << v;
+    }
+    volume[colour] += (hi - lo).prod();
+  }
+  for (long long f = vertices; f < vertices + faces; ++f) {
+    std::istringstream ss(body[f]);
+    int n = 0;
+    long long index[4] = {};
+    ASSERT_TRUE(ss >> n >> index[0] >> index[1] >> index[2] >> index[3]) << body[f];
+    EXPECT_EQ(n, 4);
+    for (long long i : index) EXPECT_EQ(i / 8, (f - vertices) / 6) << body[f];
+  }
+  EXPECT_EQ(volume.size(), 2u);  // Both states are present in this scene.
+  EXPECT_NEAR(volume["200 40 40"], json.at("occupied_volume_m3"), 1e-6);
+  EXPECT_NEAR(volume["128 128 128"], json.at("occluded_volume_m3"), 1e-6);
+
   const common::ImageU8 picture = silhouette::ReadGreyImage(Path("view.png"));
   EXPECT_GT(picture.width, 600);
 }
@@ -170,6 +412,32 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
                                       "    P: [1, 0, 0, 0, 2, 0, 0, 0, 0, 0, 0, 1]\n";
   silhouette::WriteGreyImage(Path("small.png"), common::ImageU8(10, 10));
   std::ofstream(Path("q.txt")) << "1 2\n";
+  std::ofstream(Path("nan.txt")) << "1 nan 2\n";
+  // Obstacles that would read as "no obstacle": an empty OBJ, one with only
+  // comments, and files that are no OBJ or STL mesh.
+  std::ofstream(Path("empty.obj")) << "";
+  std::ofstream(Path("comments.obj")) << "# nothing\nv 0 0 0\n";
+  std::ofstream(Path("mesh.ply")) << "ply\nformat ascii 1.0\nend_header\n";
+  std::ofstream(Path("noise.stl")) << "not a mesh\n";
+  // A PNG cut in half.
+  {
+    std::ifstream in(Path("m0.png"), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(Path("cut.png"), std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  // 17 tiny cameras (the octree supports 16), each with its mask.
+  std::string seventeen_masks;
+  {
+    std::ofstream yaml(Path("cams17.yaml"));
+    yaml << "cameras:\n";
+    for (int c = 0; c < 17; ++c) {
+      yaml << LookAtCameraYaml("c" + std::to_string(c), 8, 6,
+                               "[1, 1, " + std::to_string(3 + c) + "]", "[1, 1, 1]");
+      const std::string mask = Path("tiny" + std::to_string(c) + ".png");
+      silhouette::WriteGreyImage(mask, common::ImageU8(8, 6));
+      seventeen_masks += " " + mask;
+    }
+  }
   const std::string cams = " --cameras " + Path("cams.yaml");
   const std::vector<Case> cases = {
       {"carve --cameras " + Path("missing.yaml") + " --masks" + Masks() +
@@ -192,12 +460,30 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
       {"carve" + cams + " --masks " + Path("m0.png") + " --bounds 0 0 0 2 2 2 --depth 6", "masks"},
       {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 2 2 --depth 6", "bounds"},
       {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 -2 2 2 --depth 6", "bounds"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 inf 2 2 --depth 6", "finite"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 nan 2 2 2 --depth 6", "finite"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds -inf 0 0 2 2 2 --depth 6", "finite"},
+      {Base() + " --query " + Path("nan.txt"), "nan.txt:1"},
+      {Base() + " --obstacles " + Path("empty.obj"), "empty.obj: no triangles"},
+      {Base() + " --obstacles " + Path("comments.obj"), "comments.obj: no triangles"},
+      {Base() + " --obstacles " + Path("mesh.ply"), "mesh.ply"},
+      {Base() + " --obstacles " + Path("noise.stl"), "noise.stl"},
+      {"carve" + cams + " --masks " + Path("gone.png") + Masks().substr(Masks().find(' ', 1)) +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "gone.png"},
+      {"carve" + cams + " --masks " + Path("cut.png") + Masks().substr(Masks().find(' ', 1)) +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "cut.png"},
+      {"carve --cameras " + Path("cams17.yaml") + " --masks" + seventeen_masks +
+           " --bounds 0 0 0 2 2 2 --depth 4",
+       "cams17.yaml: 17 cameras, at most 16"},
   };
   for (const Case& c : cases) {
     const ProcessResult r = Hullguard(c.args);
     EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
     EXPECT_NE(r.err.find(c.expect), std::string::npos) << "stderr: " << r.err;
     EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+    EXPECT_EQ(r.out, "") << c.args;
   }
 }
 

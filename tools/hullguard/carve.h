@@ -17,7 +17,7 @@ namespace hg::tools {
 
 struct CarveJob {
   std::vector<geometry::CameraModel> cameras;  ///< As calibrated (may have distortion).
-  std::vector<common::ImageU8> masks;          ///< One per camera, camera-sized.
+  std::vector<common::ImageU8> masks;          ///< One per camera, same order, camera-sized.
   common::Box3 bounds;
   int depth = 8;
   int threads = 1;
@@ -38,7 +38,8 @@ struct CarveResult {
 
 /// Undistorts masks conservatively where needed, builds the quadtrees and the
 /// octree from scratch. Preconditions (checked by the callers that read input):
-/// masks match cameras in number and size, bounds valid, 3 <= depth <= 16.
+/// masks match cameras in number and size, at most octree::Octree::kMaxCameras
+/// cameras, bounds valid (finite, max > min), 3 <= depth <= 16.
 [[nodiscard]] CarveResult Carve(const CarveJob& job);
 
 /// Writes a PNG of the tree's non-free leaves (WriteSnapshotPicture).

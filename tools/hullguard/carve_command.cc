@@ -1,8 +1,21 @@
 // `hullguard carve`: masks + calibrated cameras -> conservative octree.
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <fstream>
+#include <iostream>
+#include <iterator>
 #include <sstream>
+#include <string>
+#include <vector>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include "common/config_error.h"
 #include "geometry/camera_yaml.h"
@@ -10,7 +23,6 @@
 #include "hullguard/commands.h"
 #include "octree/knowledge_filter.h"
 #include "octree/ply.h"
-#include "silhouette/mask_io.h"
 
 namespace hg::tools {
 namespace {
@@ -31,10 +43,82 @@ struct CarveFlags {
   double min_component_m3 = 0.0;
 };
 
-std::vector<Eigen::Vector3d> ReadQueryPoints(const std::string& path) {
+// Sends file descriptor 2 to /dev/null while alive. Image decoders print their
+// own diagnostics there (libpng's default error handler: "libpng error: ...",
+// OpenCV's logger: several lines per failed read); the tool reports a failed
+// read in its one error line instead. The redirect is process-wide, so this is
+// single-thread: it is used only while reading input, before any worker exists.
+class SilencedStderr {
+ public:
+  SilencedStderr() {
+    std::cerr.flush();
+    std::fflush(stderr);
+    saved_ = ::dup(STDERR_FILENO);
+    const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    if (saved_ >= 0 && null >= 0) ::dup2(null, STDERR_FILENO);
+    if (null >= 0) ::close(null);
+  }
+  ~SilencedStderr() {
+    std::cerr.flush();
+    std::fflush(stderr);
+    if (saved_ >= 0) {
+      ::dup2(saved_, STDERR_FILENO);
+      ::close(saved_);
+    }
+  }
+  SilencedStderr(const SilencedStderr&) = delete;
+  SilencedStderr& operator=(const SilencedStderr&) = delete;
+
+ private:
+  int saved_ = -1;
+};
+
+// Reads a grey mask (colour is converted to grey). A missing, empty, truncated or
+// damaged file is a ConfigError naming it, and nothing else reaches stderr.
+// OpenCV's decoders reject truncated PNG and PGM data rather than return part of
+// the image (which would read as background, that is free space).
+common::ImageU8 ReadMask(const std::string& path) {
+  errno = 0;
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    throw common::ConfigError(path + ": cannot open mask" +
+                              (errno != 0 ? std::string(": ") + std::strerror(errno) : ""));
+  }
+  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
+                                        std::istreambuf_iterator<char>());
+  if (in.bad()) throw common::ConfigError(path + ": cannot read mask");
+  if (bytes.empty()) throw common::ConfigError(path + ": mask file is empty");
+  cv::Mat m;
+  {
+    const SilencedStderr quiet;
+    try {
+      m = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+    } catch (const cv::Exception&) {
+      m = cv::Mat();
+    }
+  }
+  if (m.empty() || m.type() != CV_8UC1) {
+    throw common::ConfigError(path +
+                              ": not a readable 8-bit image (truncated, damaged or not an image)");
+  }
+  common::ImageU8 out(m.cols, m.rows);
+  for (int v = 0; v < m.rows; ++v) {
+    std::memcpy(&out.At(0, v), m.ptr<std::uint8_t>(v), static_cast<std::size_t>(m.cols));
+  }
+  return out;
+}
+
+// One point of a --query file, with its coordinates as the user wrote them: the
+// output echoes the text, so that no rounding can make two points look alike.
+struct QueryPoint {
+  std::string text;  ///< The three tokens, joined by one space.
+  Eigen::Vector3d p_W;
+};
+
+std::vector<QueryPoint> ReadQueryPoints(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw common::ConfigError(path + ": cannot open");
-  std::vector<Eigen::Vector3d> points;
+  std::vector<QueryPoint> points;
   std::string line;
   int number = 0;
   while (std::getline(in, line)) {
@@ -42,25 +126,48 @@ std::vector<Eigen::Vector3d> ReadQueryPoints(const std::string& path) {
     const auto first = line.find_first_not_of(" \t\r");
     if (first == std::string::npos || line[first] == '#') continue;
     std::istringstream ss(line);
-    Eigen::Vector3d p;
+    std::string token[3];
     std::string rest;
-    if (!(ss >> p.x() >> p.y() >> p.z()) || (ss >> rest)) {
-      throw common::ConfigError::At(path, number, "expected 'x y z', got '" + line + "'");
+    QueryPoint q;
+    bool ok = static_cast<bool>(ss >> token[0] >> token[1] >> token[2]) && !(ss >> rest);
+    for (int axis = 0; ok && axis < 3; ++axis) {
+      char* end = nullptr;
+      q.p_W[axis] = std::strtod(token[axis].c_str(), &end);
+      ok = *end == '\0' && std::isfinite(q.p_W[axis]);
     }
-    points.push_back(p);
+    if (!ok) {
+      if (!line.empty() && line.back() == '\r') line.pop_back();
+      throw common::ConfigError::At(path, number,
+                                    "expected 'x y z' (finite numbers), got '" + line + "'");
+    }
+    q.text = token[0] + " " + token[1] + " " + token[2];
+    points.push_back(std::move(q));
   }
   return points;
 }
 
 int RunCarve(const CarveFlags& f) {
   CarveJob job;
+  // Cheap flags first: a bad --bounds fails before any file is read.
+  job.bounds.min = {f.bounds[0], f.bounds[1], f.bounds[2]};
+  job.bounds.max = {f.bounds[3], f.bounds[4], f.bounds[5]};
+  if (!job.bounds.IsValid()) {
+    throw common::ConfigError(
+        "--bounds: need finite numbers with each max greater than its min (XMIN YMIN ZMIN XMAX "
+        "YMAX ZMAX)");
+  }
   job.cameras = geometry::LoadCamerasFile(f.cameras);
+  if (job.cameras.size() > static_cast<std::size_t>(octree::Octree::kMaxCameras)) {
+    throw common::ConfigError(f.cameras + ": " + std::to_string(job.cameras.size()) +
+                              " cameras, at most " + std::to_string(octree::Octree::kMaxCameras) +
+                              " are supported");
+  }
   if (f.masks.size() != job.cameras.size()) {
     throw common::ConfigError(f.cameras + ": " + std::to_string(job.cameras.size()) +
                               " cameras but " + std::to_string(f.masks.size()) + " masks given");
   }
   for (std::size_t c = 0; c < f.masks.size(); ++c) {
-    common::ImageU8 m = silhouette::ReadGreyImage(f.masks[c]);
+    common::ImageU8 m = ReadMask(f.masks[c]);
     const auto& cam = job.cameras[c];
     if (m.width != cam.width || m.height != cam.height) {
       throw common::ConfigError(f.masks[c] + ": mask is " + std::to_string(m.width) + "x" +
@@ -69,18 +176,19 @@ int RunCarve(const CarveFlags& f) {
     }
     job.masks.push_back(std::move(m));
   }
-  job.bounds.min = {f.bounds[0], f.bounds[1], f.bounds[2]};
-  job.bounds.max = {f.bounds[3], f.bounds[4], f.bounds[5]};
-  if (!job.bounds.IsValid()) {
-    throw common::ConfigError("--bounds: each max must be greater than its min");
-  }
   job.depth = f.depth;
   job.threads = f.threads;
   job.boundary_coarsening = std::min(f.boundary_coarsening, f.depth - octree::Octree::kRootLevel);
   job.threshold = static_cast<std::uint8_t>(f.threshold);
-  if (!f.obstacles.empty()) job.obstacles.push_back(geometry::LoadObj(f.obstacles));
-  const std::vector<Eigen::Vector3d> queries =
-      f.query.empty() ? std::vector<Eigen::Vector3d>{} : ReadQueryPoints(f.query);
+  if (!f.obstacles.empty()) {
+    // An obstacle hides what lies behind it; a file read as no obstacle at all
+    // (wrong format, empty mesh) would free that space, so both are errors.
+    geometry::TriangleMesh mesh = geometry::LoadMesh(f.obstacles);
+    if (mesh.triangles.empty()) throw common::ConfigError(f.obstacles + ": no triangles");
+    job.obstacles.push_back(std::move(mesh));
+  }
+  const std::vector<QueryPoint> queries =
+      f.query.empty() ? std::vector<QueryPoint>{} : ReadQueryPoints(f.query);
 
   const CarveResult r = Carve(job);
   const octree::Octree& tree = *r.tree;
@@ -90,9 +198,8 @@ int RunCarve(const CarveFlags& f) {
   const octree::KnowledgeFilterResult filter =
       f.min_component_m3 > 0 ? octree::FilterSmallComponents(tree, f.min_component_m3)
                              : octree::KnowledgeFilterResult{};
-  for (const auto& p : queries) {
-    std::printf("%.9g %.9g %.9g %s\n", p.x(), p.y(), p.z(),
-                octree::ToString(filter.StateAt(tree, p)));
+  for (const QueryPoint& q : queries) {
+    std::printf("%s %s\n", q.text.c_str(), octree::ToString(filter.StateAt(tree, q.p_W)));
   }
   const double occupied = tree.Volume(octree::LeafState::kOccupied);
   const double occluded = tree.Volume(octree::LeafState::kOccluded);
@@ -109,7 +216,7 @@ int RunCarve(const CarveFlags& f) {
         job.cameras.size(), job.depth, job.threads,
         static_cast<long long>(r.stats.verdicts_computed), filter.components,
         filter.dropped_components, filter.dropped_volume_m3);
-  } else if (queries.empty()) {
+  } else if (f.query.empty()) {  // A query file without points prints nothing.
     std::printf(
         "occupied %.6f m^3, occluded %.6f m^3, free %.6f m^3; %lld leaves, %lld nodes; "
         "octree %.2f ms, quadtrees %.2f ms\n",
@@ -126,7 +233,9 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand("carve", "Carve a conservative visual hull from masks");
   cmd->add_option("--cameras", flags->cameras, "YAML file with a top-level cameras: list")
       ->required();
-  cmd->add_option("--masks", flags->masks, "One grey mask image per camera, in order")->required();
+  cmd->add_option("--masks", flags->masks,
+                  "One grey mask image per camera, paired by position with the cameras file")
+      ->required();
   cmd->add_option("--bounds", flags->bounds, "XMIN YMIN ZMIN XMAX YMAX ZMAX (m)")
       ->required()
       ->expected(6);
@@ -140,9 +249,12 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
       ->check(CLI::Range(0, 16));
   cmd->add_option("--threshold", flags->threshold, "Foreground iff grey value > T")
       ->check(CLI::Range(0, 254));
-  cmd->add_option("--obstacles", flags->obstacles, "Static obstacles as an OBJ mesh");
+  cmd->add_option("--obstacles", flags->obstacles, "Static obstacles as an OBJ or STL mesh");
   cmd->add_option("--query", flags->query, "Text file of 'x y z' lines to classify");
-  cmd->add_option("--out", flags->out, "Write occupied leaves as PLY boxes");
+  cmd->add_option(
+      "--out", flags->out,
+      "Write occupied and occluded leaves as PLY boxes (colour per vertex: red occupied, grey "
+      "occluded)");
   cmd->add_option("--snapshot", flags->snapshot, "Write a PNG: top and side view of the result");
   cmd->add_flag("--json", flags->json, "Print a JSON summary");
   cmd->add_option("--min-component-m3", flags->min_component_m3,
