@@ -4,7 +4,10 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
+#include <filesystem>
+#include <fstream>
 #include <string>
 
 #include "common/check.h"
@@ -229,6 +232,130 @@ void BackgroundModel::Reset() {
   std::fill(deviation_.begin(), deviation_.end(), 0);
   std::fill(threshold_.begin(), threshold_.end(), 0);
   std::fill(tile_free_.begin(), tile_free_.end(), 1);
+}
+
+namespace {
+
+// A saved background: this header, then the mean's integer bytes and fraction
+// bytes (width * height * channels each), then per pixel the largest learning
+// deviation over its channels (uint16), all in host byte order; the checksum
+// (FNV-1a, 64 bit) covers everything after the header.
+struct SavedHeader {
+  char magic[8] = {'H', 'G', 'B', 'G', 'M', 'O', 'D', '1'};
+  std::int32_t width = 0;
+  std::int32_t height = 0;
+  std::int32_t channels = 0;
+  std::int32_t deviation_frames = 0;
+  std::uint64_t checksum = 0;
+};
+
+class Fnv1a {
+ public:
+  void Add(const void* data, std::size_t size) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < size; ++i) hash_ = (hash_ ^ p[i]) * 0x100000001b3ULL;
+  }
+  [[nodiscard]] std::uint64_t value() const { return hash_; }
+
+ private:
+  std::uint64_t hash_ = 0xcbf29ce484222325ULL;
+};
+
+}  // namespace
+
+bool BackgroundModel::Save(const std::string& path, std::string* error) const {
+  HG_CHECK(!learning() && channels_ > 0);
+  const auto pixels = static_cast<std::size_t>(width_) * height_;
+  const std::size_t values = pixels * static_cast<std::size_t>(channels_);
+  std::vector<std::uint16_t> noise(pixels, 0);
+  for (std::size_t p = 0; p < pixels; ++p) {
+    for (int k = 0; k < channels_; ++k) {
+      noise[p] = std::max(noise[p], deviation_[p * channels_ + k]);
+    }
+  }
+  SavedHeader header;
+  header.width = width_;
+  header.height = height_;
+  header.channels = channels_;
+  header.deviation_frames = deviation_frames_;
+  Fnv1a sum;
+  sum.Add(mean_high_.data(), values);
+  sum.Add(mean_low_.data(), values);
+  sum.Add(noise.data(), noise.size() * sizeof(std::uint16_t));
+  header.checksum = sum.value();
+  const std::string temporary = path + ".new";
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    out.write(reinterpret_cast<const char*>(&header), sizeof(header));
+    out.write(reinterpret_cast<const char*>(mean_high_.data()),
+              static_cast<std::streamsize>(values));
+    out.write(reinterpret_cast<const char*>(mean_low_.data()),
+              static_cast<std::streamsize>(values));
+    out.write(reinterpret_cast<const char*>(noise.data()),
+              static_cast<std::streamsize>(noise.size() * sizeof(std::uint16_t)));
+    out.flush();
+    if (!out) {
+      *error = temporary + ": cannot write";
+      std::error_code ec;
+      std::filesystem::remove(temporary, ec);
+      return false;
+    }
+  }
+  std::error_code ec;
+  std::filesystem::rename(temporary, path, ec);
+  if (ec) {
+    *error = path + ": cannot rename the new file over it: " + ec.message();
+    std::filesystem::remove(temporary, ec);
+    return false;
+  }
+  return true;
+}
+
+bool BackgroundModel::Load(const std::string& path, std::string* error) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) {
+    *error = path + ": cannot open";
+    return false;
+  }
+  SavedHeader header;
+  const SavedHeader expected;
+  in.read(reinterpret_cast<char*>(&header), sizeof(header));
+  if (!in || std::memcmp(header.magic, expected.magic, sizeof(header.magic)) != 0) {
+    *error = path + ": not a saved background";
+    return false;
+  }
+  if (header.width != width_ || header.height != height_ ||
+      (header.channels != 1 && header.channels != 3) || header.deviation_frames < 0) {
+    *error = path + ": a background of " + std::to_string(header.width) + "x" +
+             std::to_string(header.height) + " pixels, " + std::to_string(header.channels) +
+             " channels; the camera is " + std::to_string(width_) + "x" + std::to_string(height_);
+    return false;
+  }
+  const auto pixels = static_cast<std::size_t>(width_) * height_;
+  const std::size_t values = pixels * static_cast<std::size_t>(header.channels);
+  std::vector<std::uint8_t> high(values), low(values);
+  std::vector<std::uint16_t> noise(pixels);
+  in.read(reinterpret_cast<char*>(high.data()), static_cast<std::streamsize>(values));
+  in.read(reinterpret_cast<char*>(low.data()), static_cast<std::streamsize>(values));
+  in.read(reinterpret_cast<char*>(noise.data()),
+          static_cast<std::streamsize>(pixels * sizeof(std::uint16_t)));
+  Fnv1a sum;
+  sum.Add(high.data(), values);
+  sum.Add(low.data(), values);
+  sum.Add(noise.data(), noise.size() * sizeof(std::uint16_t));
+  if (!in || in.peek() != std::char_traits<char>::eof() || sum.value() != header.checksum) {
+    *error = path + ": damaged (truncated, too long or checksum mismatch)";
+    return false;
+  }
+  Reset();
+  channels_ = header.channels;
+  std::copy(high.begin(), high.end(), mean_high_.begin());
+  std::copy(low.begin(), low.end(), mean_low_.begin());
+  for (std::size_t p = 0; p < pixels; ++p) deviation_[p * channels_] = noise[p];
+  deviation_frames_ = header.deviation_frames;
+  frames_learned_ = options_.learn_frames;
+  FinishLearning();
+  return true;
 }
 
 void BackgroundModel::Apply(const common::ImageRgb8& frame, common::ImageU8* mask) {

@@ -6,6 +6,7 @@
 /// far from foreground, and never learns a person who stands still.
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/image.h"
@@ -93,6 +94,21 @@ class BackgroundModel {
   /// Forgets the background and learns again (after a camera was bumped or
   /// reconnected). Does not allocate.
   void Reset();
+
+  /// Writes the learned background (per pixel and channel its mean, per
+  /// pixel its noise) to `path`, through a temporary file renamed over it,
+  /// so that a restart can take it up instead of learning a cell that may no
+  /// longer be empty. Call it right after learning ended: the means saved are
+  /// the empty cell's. Returns false with *error set when it cannot.
+  /// Precondition: !learning().
+  bool Save(const std::string& path, std::string* error) const;
+
+  /// Takes up a background written by Save() for a camera of this size: the
+  /// model is then learned, with thresholds from its own options (which may
+  /// differ from the saver's), and the format (RGB or grey) of the saver's
+  /// frames. Returns false with *error set, the model unchanged, when the
+  /// file cannot be read, is of another size or is damaged (checksum).
+  bool Load(const std::string& path, std::string* error);
 
   /// The background of pixel (u, v), channel c (0 for grey), in grey levels at
   /// the reference illumination. For tests and diagnostics.

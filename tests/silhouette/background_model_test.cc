@@ -4,7 +4,9 @@
 #include <atomic>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
+#include <fstream>
 #include <new>
 #include <random>
 #include <string>
@@ -385,6 +387,72 @@ TEST(BackgroundModelTest, AllForegroundWhileLearningThenTheEmptyCellIsBackground
   EXPECT_TRUE(model.learning());
   model.Apply(seq.frame, &mask);
   EXPECT_EQ(model.foreground_fraction(), 1.0);
+}
+
+// A saved background taken up by another model (a restart) classifies exactly
+// as the model that learned it, with thresholds from the loader's options;
+// files of another size or damaged ones are refused and leave it learning.
+TEST(BackgroundModelTest, SavedBackgroundIsTakenUpAfterARestart) {
+  const sim::Scene scene = StandingCell(60.0, 0.15);
+  Sequence seq(scene);
+  BackgroundModelOptions options;
+  options.learn_frames = 10;
+  BackgroundModel learned(kWidth, kHeight, options);
+  common::ImageU8 mask;
+  for (int i = 0; i < options.learn_frames; ++i) {
+    seq.Render(i, /*present=*/false);
+    learned.Apply(seq.frame, &mask);
+  }
+  ASSERT_FALSE(learned.learning());
+  const std::string path = ::testing::TempDir() + "hg_background_saved.bin";
+  std::string error;
+  ASSERT_TRUE(learned.Save(path, &error)) << error;
+
+  BackgroundModel restarted(kWidth, kHeight, options);
+  ASSERT_TRUE(restarted.Load(path, &error)) << error;
+  EXPECT_FALSE(restarted.learning());
+  for (int v = 0; v < kHeight; v += 7) {
+    for (int u = 0; u < kWidth; u += 5) {
+      ASSERT_EQ(restarted.ThresholdAt(u, v), learned.ThresholdAt(u, v)) << u << "," << v;
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(restarted.MeanAt(u, v, c), learned.MeanAt(u, v, c));
+    }
+  }
+  // The person is there from the restart's first frame on: foreground at once,
+  // exactly as the model that learned the empty cell sees it.
+  common::ImageU8 expected;
+  for (int i = options.learn_frames; i < options.learn_frames + 5; ++i) {
+    seq.Render(i, /*present=*/true);
+    learned.Apply(seq.frame, &expected);
+    restarted.Apply(seq.frame, &mask);
+    ASSERT_EQ(mask.pixels, expected.pixels) << "frame " << i;
+    EXPECT_GT(restarted.foreground_fraction(), 0.005);
+  }
+
+  // Thresholds come from the loader's own options.
+  BackgroundModelOptions stricter = options;
+  stricter.min_threshold = 40;
+  BackgroundModel other_options(kWidth, kHeight, stricter);
+  ASSERT_TRUE(other_options.Load(path, &error)) << error;
+  EXPECT_EQ(other_options.ThresholdAt(kWidth / 2, kHeight / 2), 40);
+
+  // Another size, a damaged file, no file: refused, still learning.
+  BackgroundModel smaller(kWidth / 2, kHeight, options);
+  EXPECT_FALSE(smaller.Load(path, &error));
+  EXPECT_NE(error.find("the camera is 160x180"), std::string::npos) << error;
+  EXPECT_TRUE(smaller.learning());
+  {
+    std::fstream file(path, std::ios::in | std::ios::out | std::ios::binary);
+    file.seekp(1000);
+    file.put('\x5a');
+  }
+  BackgroundModel damaged(kWidth, kHeight, options);
+  EXPECT_FALSE(damaged.Load(path, &error));
+  EXPECT_NE(error.find("damaged"), std::string::npos) << error;
+  EXPECT_TRUE(damaged.learning());
+  std::remove(path.c_str());
+  EXPECT_FALSE(damaged.Load(path, &error));
+  EXPECT_NE(error.find("cannot open"), std::string::npos) << error;
+  EXPECT_TRUE(damaged.learning());
 }
 
 // -----------------------------------------------------------------------------
