@@ -20,7 +20,7 @@ struct ImagingSettings {
   double noise_sigma = 2.0;  ///< Sensor noise, grey levels (0..255 scale), Gaussian.
   Eigen::Vector3d light_W = Eigen::Vector3d(2.0, 1.5, 3.8);  ///< Point light (ceiling lamp).
   double ambient = 0.35;            ///< Ambient share of the light, [0, 1].
-  bool shadows = true;              ///< Soft shadows of people and objects.
+  bool shadows = true;              ///< Obstacles' hard shadows, people's soft ones.
   double shadow_softness_m = 0.15;  ///< Width of the penumbra.
   /// Global light changes: gain(t) = 1 + amplitude * sin(2 pi t / period_s).
   double light_change_amplitude = 0.0;
