@@ -9,6 +9,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "common/log.h"
 #include "octree/camera_view.h"
 #include "pipeline/black_box.h"
 #include "pipeline/cycle_phase.h"
@@ -164,6 +165,10 @@ void Pipeline::SilhouetteLoop(int index) {
   }
 }
 
+std::string Pipeline::BackgroundFile(int camera) const {
+  return options_.background_dir + "/background-" + cameras_[camera]->model.name + ".bin";
+}
+
 void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare) {
   CameraRuntime& c = *cameras_[camera];
   const common::ImageU8* mask = &frame.grey;
@@ -174,13 +179,32 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
     if (fault != capture::CameraFault::kNone) return;
     if (!c.background) {
+      // Warm-up, the camera's first frame: the model, and its saved background.
       c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
                                                                    options_.background);
+      if (!options_.background_dir.empty()) {
+        std::string error;
+        if (c.background->Load(BackgroundFile(camera), &error)) {
+          log::Info("{}: background taken up from {}", c.model.name, BackgroundFile(camera));
+        } else {
+          log::Info("{}: learning the background ({})", c.model.name, error);
+        }
+      }
     }
+    const bool was_learning = c.background->learning();
     if (frame.kind == capture::FrameKind::kRgb) {
       c.background->Apply(frame.rgb, &c.foreground);
     } else {
       c.background->Apply(frame.grey, &c.foreground);
+    }
+    if (was_learning && !c.background->learning() && !options_.background_dir.empty()) {
+      // Once per learning, at the end of warm-up.
+      std::string error;
+      if (c.background->Save(BackgroundFile(camera), &error)) {
+        log::Info("{}: background learned, saved to {}", c.model.name, BackgroundFile(camera));
+      } else {
+        log::Warn("{}: background learned, not saved: {}", c.model.name, error);
+      }
     }
     if (options_.background_dilate_px > 0) {
       // The default 3x3 square, applied dilate_px times: a (2 r + 1)^2 square.

@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -68,6 +69,13 @@ struct PipelineOptions {
   /// person's pixel whose colour happens to match the background is covered
   /// by its neighbours (holes and ragged edges of the silhouette).
   int background_dilate_px = 2;
+  /// Where each camera's learned background is kept across restarts
+  /// (`background-<camera>.bin`; empty: nowhere, every start learns). A camera
+  /// whose file is there and fits takes it up instead of learning: a person
+  /// in the cell when the daemon restarts stays foreground. A camera that
+  /// learns (no file, or one that does not fit) writes its file when learning
+  /// ends. To learn again, remove the files while the daemon is stopped.
+  std::string background_dir;
 };
 
 struct PipelineCamera {
@@ -198,6 +206,8 @@ class Pipeline {
   /// an older buffer of the same size) instead of copied.
   void ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare = nullptr);
   void FusionLoop();
+  /// Where camera `camera`'s learned background is kept (background_dir set).
+  [[nodiscard]] std::string BackgroundFile(int camera) const;
   /// One fusion cycle; fps_window_s > 0 also updates the frame rates.
   /// `received_by`, in live use, is the cycle's start on the steady clock: a
   /// camera also counts as silent when its newest frame was handed over

@@ -359,6 +359,87 @@ TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
 // The colour path: a recording of colour frames (the empty cell first, then
 // two people standing) replayed through the background model. Once the model
 // has learned the empty cell, every point of the people is occupied.
+// The daemon restarts while people stand in the cell. With the background it
+// learned before kept in background_dir, they are foreground from the first
+// frame on; a pipeline that learns afresh takes them for background and, once
+// learning ends, reports points inside them free (the hazard this prevents).
+TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
+  namespace fs = std::filesystem;
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  sim::Scene empty = *scene;
+  empty.people.clear();
+  const fs::path dir = fs::temp_directory_path() / ("hg_background_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  std::vector<sim::BodyState> people;
+  for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
+  std::vector<sim::ColourRenderer> with_people, without;
+  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+    with_people.emplace_back(*scene, c);
+    without.emplace_back(empty, c);
+  }
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 7;
+  options.publish_depth = 6;
+  options.background.learn_frames = 8;
+  auto make = [&](const std::string& background_dir) {
+    PipelineOptions o = options;
+    o.background_dir = background_dir;
+    std::vector<PipelineCamera> cameras;
+    for (const sim::SceneCamera& c : scene->cameras) cameras.push_back({c.model, nullptr, 150});
+    return std::make_unique<Pipeline>(o, std::move(cameras), std::vector<geometry::TriangleMesh>{},
+                                      nullptr);
+  };
+  // Feeds frames [first, first + n) with or without the people; the last snapshot.
+  auto run = [&](Pipeline& pipeline, int first, int n, bool present) {
+    std::shared_ptr<const OccupancySnapshot> last;
+    capture::Frame frame;
+    frame.kind = capture::FrameKind::kRgb;
+    for (int i = first; i < first + n; ++i) {
+      frame.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
+      frame.index = static_cast<std::uint64_t>(i);
+      for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+        (present ? with_people : without)[c].Render(
+            present ? people : std::vector<sim::BodyState>{}, i / 30.0,
+            static_cast<std::uint64_t>(i), &frame.rgb);
+        pipeline.Feed(c, frame);
+      }
+      last = pipeline.Step(frame.stamp_ns);
+    }
+    return last;
+  };
+  auto reported_free = [&](const OccupancySnapshot& s) {
+    return testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 200, 5),
+                                          s.bounds.min, s.bounds.max, s.depth,
+                                          {&s.occupied, &s.occluded});
+  };
+  const std::size_t all_cells = std::size_t{1} << (3 * options.publish_depth);
+
+  {  // The first start: the cell is empty while it learns.
+    auto first = make(dir.string());
+    run(*first, 0, options.background.learn_frames + 2, /*present=*/false);
+  }
+  for (const sim::SceneCamera& c : scene->cameras) {
+    EXPECT_TRUE(fs::exists(dir / ("background-" + c.model.name + ".bin"))) << c.model.name;
+  }
+  // The restart, with the people there from its first frame.
+  auto restarted = make(dir.string());
+  const auto s = run(*restarted, 100, 3, /*present=*/true);
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(reported_free(*s), 0);
+  // Not merely everything occupied: the saved background certifies free space at once.
+  EXPECT_LT(OccupancySnapshot::Cells(s->occupied) + OccupancySnapshot::Cells(s->occluded),
+            all_cells / 2);
+
+  // Learning afresh with the people present learns them.
+  auto fresh = make("");
+  const auto learned = run(*fresh, 100, options.background.learn_frames + 3, /*present=*/true);
+  ASSERT_NE(learned, nullptr);
+  EXPECT_GT(reported_free(*learned), 0) << "the people were not learned: the test shows nothing";
+  fs::remove_all(dir);
+}
+
 TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
   namespace fs = std::filesystem;
   const std::shared_ptr<sim::Scene> scene = StandingScene();
