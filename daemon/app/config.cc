@@ -11,6 +11,7 @@
 #include <span>
 #include <sstream>
 #include <system_error>
+#include <tuple>
 #include <type_traits>
 #include <utility>
 
@@ -23,6 +24,8 @@
 #include "common/config_error.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
+#include "geometry/mesh.h"
+#include "sim/scene.h"
 
 namespace hg::app {
 namespace {
@@ -257,7 +260,9 @@ const Field<CameraConfig> kCameraFields[] = {
 const Field<SimSourceConfig> kSimFields[] = {
     {.key = "scene",
      .member = &SimSourceConfig::scene,
-     .meaning = "Scene file (docs/scenes.md), relative to the config file; must define the camera.",
+     .meaning = "Scene file (docs/scenes.md), relative to the config file. It must load and "
+                "define the camera, and the camera block must be that camera's: the same width "
+                "and height, and K, distortion and pose to 1e-9 relative.",
      .required = true,
      .path = PathCheck::kFile},
     {.key = "camera",
@@ -393,7 +398,8 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
 const Field<ObstacleConfig> kObstacleFields[] = {
     {.key = "file",
      .member = &ObstacleConfig::file,
-     .meaning = "Static obstacle mesh (.obj or .stl, world frame, m), relative to the config file.",
+     .meaning = "Static obstacle mesh (.obj or .stl, world frame, m), relative to the config "
+                "file; loaded at validation and must have triangles.",
      .required = true,
      .path = PathCheck::kFile},
 };
@@ -996,26 +1002,119 @@ void CheckBlackBox(Reader& r, const Entries& sections, const Config& config) {
                 " Hz, " + FormatNumber(std::round(mib({*largest}))) + " MiB)");
   } catch (const ConfigError& e) {
     r.Error(line, "blackbox", std::string("cannot size the rings: ") + e.what());
+  } catch (const YAML::Exception& e) {  // A recording's manifest read by yaml-cpp.
+    r.Error(line, "blackbox", std::string("cannot size the rings: ") + e.what());
   }
 }
 
-/// Names of the cameras a scene file defines; nullopt (and an error) when it cannot be read.
-std::optional<std::vector<std::string>> SceneCameras(Reader& r, const Item& scene_item,
-                                                     const std::string& scene_path) {
-  YAML::Node root;
-  try {
-    root = common::LoadYamlFile(scene_path);
-  } catch (const ConfigError& e) {
-    r.Error(scene_item.line, scene_item.path, std::string("cannot read the scene: ") + e.what());
-    return std::nullopt;
-  }
-  std::vector<std::string> names;
-  if (root.IsMap() && root["cameras"].IsSequence()) {
-    for (const YAML::Node& c : root["cameras"]) {
-      if (c.IsMap() && c["name"].IsScalar()) names.push_back(c["name"].Scalar());
+/// Largest image side capture::V4l2Source accepts.
+constexpr int kMaxV4l2Side = 16384;
+
+/// Scenes of `sim` sources by resolved path, each loaded once; nullopt for
+/// one that could not be loaded (its error is recorded once).
+using SceneCache = std::map<std::string, std::optional<sim::Scene>>;
+
+/// The whole scene at `scene_path` (sim::LoadScene: every key, its meshes),
+/// loaded once per path; nullptr when it cannot be, its error (with the
+/// scene's own file and line) recorded at the `scene` key that names it first.
+const sim::Scene* LoadSceneOnce(Reader& r, SceneCache* scenes, const Item& scene_item,
+                                const std::string& scene_path) {
+  const auto [it, inserted] = scenes->try_emplace(scene_path);
+  if (inserted) {
+    try {
+      it->second = sim::LoadScene(scene_path);
+    } catch (const ConfigError& e) {
+      r.Error(scene_item.line, scene_item.path, std::string("bad scene: ") + e.what());
+    } catch (const YAML::Exception& e) {  // LoadScene reports ConfigError; this is defence.
+      r.Error(scene_item.line, scene_item.path,
+              "bad scene: " + scene_path + ": " + std::string(e.what()));
     }
   }
-  return names;
+  return it->second ? &*it->second : nullptr;
+}
+
+/// Relative tolerance of the comparison of a camera block with its scene's
+/// camera: of the largest entry of the matrix (at least 1), so that zeros
+/// compare absolutely.
+constexpr double kSceneCameraTolerance = 1e-9;
+
+/// The shortest text that reads back as `value`: a difference far beyond the
+/// sixth digit still shows.
+std::string ExactNumber(double value) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), value);
+  return ec == std::errc() ? std::string(buf, end) : FormatNumber(value);
+}
+
+/// "name[i] a here, b in the scene" for the first entry of `a` and `b` that
+/// differ by more than the tolerance; empty when none does.
+std::string FirstDifference(const std::string& name, std::span<const double> a,
+                            std::span<const double> b) {
+  double scale = 1.0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    scale = std::max({scale, std::abs(a[i]), std::abs(b[i])});
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (std::abs(a[i] - b[i]) <= kSceneCameraTolerance * scale) continue;
+    return name + "[" + std::to_string(i) + "] " + ExactNumber(a[i]) + " here, " +
+           ExactNumber(b[i]) + " in the scene";
+  }
+  return "";
+}
+
+/// A sim source renders the scene's camera while the pipeline projects with
+/// the config's camera block: they must be the same camera, or every frame is
+/// the wrong size (corrupt) or the silhouettes land in the wrong place
+/// (unsafe). Records each difference at the config key that sets it.
+void CheckSimCamera(Reader& r, const Item& entry, const Entries& e,
+                    const geometry::CameraModel& config_camera,
+                    const geometry::CameraModel& scene_camera, const std::string& scene_text) {
+  const std::string of_scene = "camera '" + scene_camera.name + "' of scene '" + scene_text + "'";
+  auto error_at = [&](std::initializer_list<const char*> keys, const std::string& problem) {
+    for (const char* key : keys) {
+      if (const auto it = e.find(key); it != e.end()) {
+        r.Error(it->second.line, it->second.path, problem);
+        return;
+      }
+    }
+    r.Error(entry.line, Join(entry.path, *keys.begin()), problem);
+  };
+  for (const auto& [key, mine, theirs] :
+       {std::tuple{"width", config_camera.width, scene_camera.width},
+        std::tuple{"height", config_camera.height, scene_camera.height}}) {
+    if (mine != theirs) {
+      error_at({key}, "is " + std::to_string(mine) + " but " + of_scene + " has " +
+                          std::to_string(theirs) + ": every frame would be the wrong size");
+    }
+  }
+  // Entries row-major, as the camera block writes them.
+  auto values = [](const auto& m) {
+    std::vector<double> out;
+    for (int i = 0; i < m.rows(); ++i) {
+      for (int j = 0; j < m.cols(); ++j) out.push_back(m(i, j));
+    }
+    return out;
+  };
+  const std::string k = FirstDifference("K", values(config_camera.K), values(scene_camera.K));
+  const std::string d =
+      FirstDifference("distortion", config_camera.distortion, scene_camera.distortion);
+  const std::string rot =
+      FirstDifference("R", values(config_camera.R_CW), values(scene_camera.R_CW));
+  const std::string t = FirstDifference("t", values(config_camera.t_CW), values(scene_camera.t_CW));
+  // Each difference at the key that sets it: K, R and t come from P in that
+  // form, and the pose from position and look_at in that one.
+  const std::string differs = "differs from " + of_scene + ": ";
+  if (!k.empty()) error_at({"K", "P"}, differs + k);
+  if (!d.empty()) error_at({"distortion"}, differs + d);
+  if (e.count("R") != 0 || e.count("t") != 0) {
+    if (!rot.empty()) error_at({"R"}, differs + rot);
+    if (!t.empty()) error_at({"t"}, differs + t);
+  } else if (!rot.empty() || !t.empty()) {
+    error_at({"position", "P"}, "the pose " + differs +
+                                    (rot.empty() ? t
+                                     : t.empty() ? rot
+                                                 : rot + "; " + t));
+  }
 }
 
 /// Rewrites an error of geometry::ParseCamera ("file:line: key: problem", about
@@ -1067,7 +1166,9 @@ S ReadSource(Reader& r, const Item& source, std::span<const Field<S>> fields, En
 }
 
 /// Reads one `cameras:` entry; `name_item` receives the item of its `name` key.
-std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, Item* name_item) {
+/// The scenes of sim sources are loaded into `scenes`.
+std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache* scenes,
+                                       Item* name_item) {
   std::vector<std::string> known;
   for (const CameraBlockKey& k : kCameraBlockKeys) known.emplace_back(k.key);
   known.emplace_back("source");
@@ -1087,13 +1188,12 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, Item* name_
     }
   }
   CameraConfig camera;
-  bool ok = true;
-  try {
-    camera.model = geometry::ParseCamera(block, r.file());
-  } catch (const ConfigError& error) {
-    RecordCameraError(r, error.what(), entry);
-    ok = false;
-  }
+  std::vector<std::string> camera_errors;
+  const std::optional<geometry::CameraModel> model =
+      geometry::ParseCameraReportingAll(block, r.file(), &camera_errors);
+  for (const std::string& error : camera_errors) RecordCameraError(r, error, entry);
+  const bool ok = model.has_value();
+  if (model) camera.model = *model;
   if (const auto it = e.find("name"); it != e.end()) *name_item = it->second;
   r.Fields<CameraConfig>(kCameraFields, e, entry, &camera);
 
@@ -1128,15 +1228,24 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, Item* name_
       if (sim.camera.empty()) sim.camera = camera.model.name;
       const auto scene_it = e_src.find("scene");
       if (!sim.scene.empty() && !sim.camera.empty() && scene_it != e_src.end()) {
-        if (const auto names = SceneCameras(r, scene_it->second, sim.scene)) {
-          if (std::find(names->begin(), names->end(), sim.camera) == names->end()) {
+        if (const sim::Scene* scene = LoadSceneOnce(r, scenes, scene_it->second, sim.scene)) {
+          const std::string& scene_text = scene_it->second.value.Scalar();
+          const sim::SceneCamera* scene_camera = nullptr;
+          std::vector<std::string> names;
+          for (const sim::SceneCamera& c : scene->cameras) {
+            if (c.model.name == sim.camera) scene_camera = &c;
+            names.push_back(c.model.name);
+          }
+          if (scene_camera == nullptr) {
             const auto cam_it = e_src.find("camera");
             const Item& at = cam_it != e_src.end()
                                  ? cam_it->second
                                  : Item{{}, {}, source.path + ".camera", source.line};
             r.Error(at.line, at.path,
-                    "scene '" + scene_it->second.value.Scalar() + "' has no camera '" + sim.camera +
-                        "' (it has " + OrList(*names, " and ") + ")");
+                    "scene '" + scene_text + "' has no camera '" + sim.camera + "' (it has " +
+                        OrList(names, " and ") + ")");
+          } else if (ok) {
+            CheckSimCamera(r, entry, e, camera.model, scene_camera->model, scene_text);
           }
         }
       }
@@ -1161,6 +1270,21 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, Item* name_
       if (!v4l2.device.empty() && v4l2.device.rfind("/dev/", 0) != 0) {
         r.Error(e_src.at("device").line, e_src.at("device").path,
                 "expected a device node such as /dev/video0");
+      }
+      // What capture::V4l2Source refuses, refused here, before any camera is opened.
+      if (ok) {
+        for (const auto& [key, side] :
+             {std::pair{"width", camera.model.width}, std::pair{"height", camera.model.height}}) {
+          if (side > kMaxV4l2Side) {
+            r.Error(e.at(key).line, e.at(key).path,
+                    "at most " + std::to_string(kMaxV4l2Side) + " for a v4l2 camera (got " +
+                        std::to_string(side) + ")");
+          }
+        }
+        if (v4l2.format == V4l2Format::kYuyv && camera.model.width % 2 != 0) {
+          r.Error(e.at("width").line, e.at("width").path,
+                  "YUYV needs an even width (got " + std::to_string(camera.model.width) + ")");
+        }
       }
       camera.source = v4l2;
       break;
@@ -1324,9 +1448,10 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
       r.Error(list.line, list.path, "expected a non-empty list of cameras");
     } else {
       std::map<std::string, int> first_line;  // Camera name -> line of its name.
+      SceneCache scenes;
       for (const Item& entry : r.List(list)) {
         Item name_item;
-        std::optional<CameraConfig> camera = ReadCamera(r, entry, &name_item);
+        std::optional<CameraConfig> camera = ReadCamera(r, entry, &scenes, &name_item);
         // Checked on the raw name, so that a duplicate is reported even when
         // the camera block has other problems.
         if (name_item.value.IsScalar() && !name_item.value.Scalar().empty()) {
@@ -1355,8 +1480,21 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
       std::string ext = fs::path(obstacle.file).extension().string();
       std::transform(ext.begin(), ext.end(), ext.begin(),
                      [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+      const Item& file_item = e.at("file");
       if (ext != ".obj" && ext != ".stl") {
-        r.Error(e.at("file").line, e.at("file").path, "expected an .obj or .stl mesh");
+        r.Error(file_item.line, file_item.path, "expected an .obj or .stl mesh");
+        continue;
+      }
+      // Loaded as the daemon will (LoadObstacles), so that a bad mesh fails here.
+      try {
+        if (geometry::LoadMesh(obstacle.file).triangles.empty()) {
+          r.Error(file_item.line, file_item.path,
+                  "mesh '" + obstacle.file + "' has no triangles (not an " +
+                      (ext == ".obj" ? std::string("OBJ") : std::string("STL")) + " mesh?)");
+          continue;
+        }
+      } catch (const ConfigError& error) {
+        r.Error(file_item.line, file_item.path, std::string("bad mesh: ") + error.what());
         continue;
       }
       config.obstacles.push_back(std::move(obstacle));
@@ -1371,6 +1509,8 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
 }
 
 Config LoadConfig(const std::string& path) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) throw ConfigError::At(path, 0, "is a folder, not a config file");
   std::ifstream in(path);
   if (!in) throw ConfigError::At(path, 0, "cannot open");
   std::ostringstream text;

@@ -31,7 +31,7 @@ cameras:
   - name: cam0
     width: 1920
     height: 1080
-    K: [1083.58, 0, 959.5, 0, 1083.58, 539.5, 0, 0, 1]
+    K: [1083.5787063372297, 0, 959.5, 0, 1083.5787063372297, 539.5, 0, 0, 1]
     position: [-0.3, -0.3, 3.6]
     look_at: [2, 2, 1]
     source: {type: sim, scene: scenes/demo_cell.yaml}
@@ -65,10 +65,12 @@ std::string ConfigReferenceMarkdown() {
       "metres in the world frame (right-handed, z up).\n"
       "\n"
       "Cross-field checks: `timing.deadline_ms < 1000 / timing.rate_hz`; camera names are\n"
-      "unique; a `sim` source's scene file exists and defines the camera; paths of `replay`\n"
-      "folders and obstacle meshes exist; with tracking on, its grid over `cell.bounds` at\n"
-      "`tracking.voxel_m` holds at most 50 million voxels, and `tracking.collision_radius_m` is\n"
-      "at most the smallest half-axis of a person (0.2 m).\n"
+      "unique; a `sim` source's scene loads (every key of it checked) and has the camera, with\n"
+      "the same width and height and, to 1e-9 relative, the same K, distortion and pose as the\n"
+      "camera block; obstacle meshes load and have triangles; `replay` folders exist; with\n"
+      "tracking on, its grid over `cell.bounds` at `tracking.voxel_m` holds at most 50 million\n"
+      "voxels, and `tracking.collision_radius_m` is at most the smallest half-axis of a person\n"
+      "(0.2 m).\n"
       "\n"
       "The shipped demo, `config/demo.yaml`, watches the simulated demo cell with four cameras.\n";
   for (const DocSection& section : ConfigDocSections()) {

@@ -4,6 +4,7 @@
 #include <iostream>
 #include <string>
 
+#include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
 
 #include "app/config.h"
@@ -12,7 +13,7 @@
 
 namespace {
 
-/// Exit codes: 0 ok, 1 cannot run, 2 bad configuration.
+/// Exit codes: 0 ok, 1 cannot run, 2 bad configuration or command line.
 constexpr int kExitCannotRun = 1;
 constexpr int kExitBadConfig = 2;
 
@@ -24,8 +25,9 @@ int main(int argc, char** argv) {
   std::string check_path;
   bool print_docs = false;
   double duration_s = 0.0;
-  auto* config_opt = app.add_option("--config", config_path, "Run with this config file")
-                         ->check(CLI::ExistingFile);
+  // No CLI::ExistingFile check: the loader reports a missing file as every
+  // other bad config, "file: cannot open", with exit code 2.
+  auto* config_opt = app.add_option("--config", config_path, "Run with this config file");
   auto* check_opt = app.add_option("--check-config", check_path,
                                    "Validate a config file, print a summary and exit");
   auto* docs_opt = app.add_flag("--print-config-docs", print_docs,
@@ -36,7 +38,15 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   config_opt->excludes(check_opt)->excludes(docs_opt);
   check_opt->excludes(docs_opt);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help.
+    // A bad command line, like a bad config, cannot be fixed by a restart
+    // (the unit's RestartPreventExitStatus=2); CLI11's own codes are > 100.
+    std::cerr << "hullguardd: " << e.what() << " (--help lists the options)\n";
+    return kExitBadConfig;
+  }
   if (config_path.empty() && check_path.empty() && !print_docs) {
     std::cerr << "hullguardd: give --config FILE, --check-config FILE or --print-config-docs\n";
     return kExitBadConfig;
@@ -53,6 +63,11 @@ int main(int argc, char** argv) {
   } catch (const hg::common::ConfigError& e) {
     std::cerr << e.what() << '\n';
     return kExitBadConfig;
+  } catch (const std::exception& e) {
+    // The loader reports bad input as ConfigError; whatever else escapes it
+    // (a yaml-cpp conversion) is still about this file.
+    std::cerr << path << ": " << e.what() << '\n';
+    return kExitBadConfig;
   }
   if (!check_path.empty()) {
     std::cout << "config OK: " << hg::app::Summary(config) << '\n';
@@ -62,6 +77,11 @@ int main(int argc, char** argv) {
     return hg::app::RunPipeline(config, duration_s);
   } catch (const hg::common::ConfigError& e) {
     std::cerr << e.what() << '\n';
+    return kExitBadConfig;
+  } catch (const YAML::Exception& e) {
+    // A file the config names (scene, recording) that yaml-cpp could not
+    // convert: bad input, which a restart cannot fix.
+    std::cerr << path << ": " << e.what() << '\n';
     return kExitBadConfig;
   } catch (const std::exception& e) {
     std::cerr << "hullguardd: " << e.what() << '\n';

@@ -2,6 +2,8 @@
 
 #include <map>
 #include <memory>
+#include <optional>
+#include <variant>
 
 #ifdef HG_WITH_ARAVIS
 #include "capture/aravis_source.h"
@@ -9,7 +11,6 @@
 #include "capture/replay_source.h"
 #include "capture/v4l2_source.h"
 #include "common/config_error.h"
-#include "common/yaml_file.h"
 #include "sim/scene.h"
 
 namespace hg::app {
@@ -57,13 +58,53 @@ std::vector<geometry::TriangleMesh> LoadObstacles(const Config& config) {
 
 std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
                                                   const capture::SimClock& clock) {
+  // First everything that can fail: the scenes and recordings read, the
+  // source types checked. Only then are the sources made, in config order,
+  // since making one opens its camera (V4L2) or starts connecting (Aravis).
   std::map<std::string, std::shared_ptr<const sim::Scene>> scenes;
+  std::vector<int> scene_camera(config.cameras.size(), -1);
+  std::vector<std::optional<capture::RecordingCamera>> recordings(config.cameras.size());
+  for (std::size_t i = 0; i < config.cameras.size(); ++i) {
+    const CameraConfig& c = config.cameras[i];
+    const std::string where = config.source_file + ": camera '" + c.model.name + "': ";
+    if (const auto* replay = std::get_if<ReplaySourceConfig>(&c.source)) {
+      recordings[i] = capture::ReadRecordingCamera(replay->directory, replay->camera);
+    } else if (const auto* sim_source = std::get_if<SimSourceConfig>(&c.source)) {
+      auto& scene = scenes[sim_source->scene];
+      if (!scene) scene = std::make_shared<const sim::Scene>(sim::LoadScene(sim_source->scene));
+      for (std::size_t k = 0; k < scene->cameras.size(); ++k) {
+        if (scene->cameras[k].model.name == sim_source->camera) {
+          scene_camera[i] = static_cast<int>(k);
+        }
+      }
+      if (scene_camera[i] < 0) {  // The loader checked it; the file may have changed since.
+        throw common::ConfigError(where + "scene '" + sim_source->scene + "' has no camera '" +
+                                  sim_source->camera + "'");
+      }
+#ifndef HG_WITH_ARAVIS
+    } else if (std::holds_alternative<AravisSourceConfig>(c.source)) {
+      throw common::ConfigError(where +
+                                "source type 'aravis' is not available in this build (sim, "
+                                "replay, v4l2 and, with libaravis-dev, aravis are)");
+#endif
+    }
+  }
+
   std::vector<pipeline::PipelineCamera> cameras;
-  for (const CameraConfig& c : config.cameras) {
+  for (std::size_t i = 0; i < config.cameras.size(); ++i) {
+    const CameraConfig& c = config.cameras[i];
     if (const auto* replay = std::get_if<ReplaySourceConfig>(&c.source)) {
       auto source = std::make_unique<capture::ReplaySource>(
-          capture::ReadRecordingCamera(replay->directory, replay->camera), clock,
+          std::move(*recordings[i]), clock,
           replay->realtime ? capture::ReplayPacing::kRealtime : capture::ReplayPacing::kFast);
+      cameras.push_back({c.model, std::move(source), c.timeout_ms});
+      continue;
+    }
+    if (const auto* sim_source = std::get_if<SimSourceConfig>(&c.source)) {
+      const std::shared_ptr<const sim::Scene>& scene = scenes.at(sim_source->scene);
+      auto source =
+          std::make_unique<capture::SimSource>(scene, scene_camera[i], scene->rate_hz, clock);
+      if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
       cameras.push_back({c.model, std::move(source), c.timeout_ms});
       continue;
     }
@@ -105,23 +146,6 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
           {c.model, std::make_unique<capture::V4l2Source>(std::move(o)), c.timeout_ms});
       continue;
     }
-    const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
-    if (sim_source == nullptr) {
-      throw common::ConfigError(config.source_file + ": camera '" + c.model.name +
-                                "': source type '" + ToString(TypeOf(c.source)) +
-                                "' is not available in this build (sim, replay, v4l2 and, with "
-                                "libaravis-dev, aravis are)");
-    }
-    auto& scene = scenes[sim_source->scene];
-    if (!scene) scene = std::make_shared<const sim::Scene>(sim::LoadScene(sim_source->scene));
-    int index = -1;
-    for (std::size_t i = 0; i < scene->cameras.size(); ++i) {
-      if (scene->cameras[i].model.name == sim_source->camera) index = static_cast<int>(i);
-    }
-    // The loader checked that the scene defines the camera.
-    auto source = std::make_unique<capture::SimSource>(scene, index, scene->rate_hz, clock);
-    if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
-    cameras.push_back({c.model, std::move(source), c.timeout_ms});
   }
   return cameras;
 }
@@ -136,12 +160,8 @@ std::vector<pipeline::BlackBoxCamera> BlackBoxCameras(const Config& config) {
     b.rate_hz = config.blackbox.camera_rate_hz;
     if (const auto* s = std::get_if<SimSourceConfig>(&c.source)) {
       b.kind = FrameKind::kMask;
-      auto [it, inserted] = scene_rates.emplace(s->scene, sim::Scene{}.rate_hz);
-      if (inserted) {
-        // Only the header's rate: the loader has validated the whole scene.
-        const YAML::Node rate = common::LoadYamlFile(s->scene)["scene"]["rate_hz"];
-        if (rate && rate.IsScalar()) it->second = rate.as<double>();
-      }
+      auto [it, inserted] = scene_rates.emplace(s->scene, 0.0);
+      if (inserted) it->second = sim::LoadScene(s->scene).rate_hz;  // ConfigError if bad.
       b.rate_hz = it->second;
     } else if (const auto* r = std::get_if<ReplaySourceConfig>(&c.source)) {
       const capture::RecordingCamera rec = capture::ReadRecordingCamera(r->directory, r->camera);

@@ -22,7 +22,9 @@ namespace hg::app {
 
 /// Every configured camera with its source, built the one way the daemon and
 /// `hullguard record` share. `clock` is time 0 of sim and replay sources.
-/// Sources open their devices here (Aravis, V4L2).
+/// Sources open their devices here (Aravis, V4L2), but only once every scene
+/// and recording has been read and every source type found available, so
+/// that none of those failures comes after a camera was opened.
 /// @throws common::ConfigError for a source this build cannot run, or a
 /// scene or recording that cannot be read; a camera's own errors as its
 /// source throws them.

@@ -42,8 +42,11 @@ constexpr double kMaxUpAlignment = 0.99;
 /// empty for a stand-alone entry.
 class CameraParser {
  public:
-  CameraParser(const YAML::Node& node, const std::string& file, std::string where)
-      : node_(node), file_(file), where_(std::move(where)) {}
+  /// With `errors`, the independent checks each record their problem there and
+  /// parsing goes on; without, the first problem is thrown.
+  CameraParser(const YAML::Node& node, const std::string& file, std::string where,
+               std::vector<std::string>* errors = nullptr)
+      : node_(node), file_(file), where_(std::move(where)), errors_(errors) {}
 
   CameraModel Parse() {
     if (!node_.IsMap()) {
@@ -52,81 +55,113 @@ class CameraParser {
     static const std::set<std::string> kKnown = {
         "name", "width", "height", "K", "R", "t", "P", "distortion", "position", "look_at", "up"};
     for (const auto& kv : node_) {
-      const int line = LineOf(kv.first);
-      if (!kv.first.IsScalar()) {
-        throw ConfigError::At(file_, line, Prefix() + "keys must be strings");
-      }
-      const std::string key = kv.first.Scalar();
-      if (kKnown.count(key) == 0) {
-        throw ConfigError::At(file_, line, Prefix() + "unknown key '" + key + "'");
-      }
-      if (!keys_.emplace(key, kv).second) {
-        throw ConfigError::At(file_, line, Prefix() + "duplicate key '" + key + "'");
-      }
+      Check([&] {
+        const int line = LineOf(kv.first);
+        if (!kv.first.IsScalar()) {
+          throw ConfigError::At(file_, line, Prefix() + "keys must be strings");
+        }
+        const std::string key = kv.first.Scalar();
+        if (kKnown.count(key) == 0) {
+          throw ConfigError::At(file_, line, Prefix() + "unknown key '" + key + "'");
+        }
+        if (!keys_.emplace(key, kv).second) {
+          throw ConfigError::At(file_, line, Prefix() + "duplicate key '" + key + "'");
+        }
+      });
     }
 
     CameraModel camera;
-    camera.name = ParseName();
-    camera.width = ParseSide("width");
-    camera.height = ParseSide("height");
+    Check([&] { camera.name = ParseName(); });
+    Check([&] { camera.width = ParseSide("width"); });
+    Check([&] { camera.height = ParseSide("height"); });
 
     const bool has_p = Has("P");
     const bool has_krt = Has("K") || Has("R") || Has("t");
     const bool has_look_at = Has("position") || Has("look_at") || Has("up");
-    if (has_p && has_krt) {
-      throw ConfigError::At(file_, LineOf(Key("P")), Prefix() + "give either K+R+t or P, not both");
-    }
-    if (has_p && has_look_at) {
-      throw ConfigError::At(file_, LineOf(Key("P")),
-                            Prefix() + "give either K+position+look_at or P, not both");
-    }
-    if (has_look_at && (Has("R") || Has("t"))) {
-      const std::string key = Has("R") ? "R" : "t";
-      throw ConfigError::At(file_, LineOf(Key(key)),
-                            Prefix() + "give either R+t or position+look_at (+up), not both");
-    }
+    bool one_form = false;  // Past a mix of forms, the projection is not checked further.
+    Check([&] {
+      if (has_p && has_krt) {
+        throw ConfigError::At(file_, LineOf(Key("P")),
+                              Prefix() + "give either K+R+t or P, not both");
+      }
+      if (has_p && has_look_at) {
+        throw ConfigError::At(file_, LineOf(Key("P")),
+                              Prefix() + "give either K+position+look_at or P, not both");
+      }
+      if (has_look_at && (Has("R") || Has("t"))) {
+        const std::string key = Has("R") ? "R" : "t";
+        throw ConfigError::At(file_, LineOf(Key(key)),
+                              Prefix() + "give either R+t or position+look_at (+up), not both");
+      }
+      one_form = true;
+    });
     if (Has("distortion")) {
-      const std::vector<double> d = Numbers("distortion", 5);
-      for (int i = 0; i < 5; ++i) {
-        camera.distortion[i] = d[i];
-      }
-    }
-    if (has_p) {
-      const std::vector<double> p = Numbers("P", 12);
-      Eigen::Matrix<double, 3, 4> P;
-      for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 4; ++c) {
-          P(r, c) = p[4 * r + c];
+      Check([&] {
+        const std::vector<double> d = Numbers("distortion", 5);
+        for (int i = 0; i < 5; ++i) {
+          camera.distortion[i] = d[i];
         }
-      }
-      std::string error;
-      const std::optional<DecomposeResult> krt = DecomposeProjection(P, &error);
-      if (!krt) {
-        throw ConfigError::At(file_, LineOf(Key("P")), Path("P") + ": " + error);
-      }
-      camera.K = krt->K;
-      camera.R_CW = krt->R_CW;
-      camera.t_CW = krt->t_CW;
+      });
+    }
+    if (!one_form) return camera;  // Only when collecting: the mix is recorded.
+    if (has_p) {
+      Check([&] {
+        const std::vector<double> p = Numbers("P", 12);
+        Eigen::Matrix<double, 3, 4> P;
+        for (int r = 0; r < 3; ++r) {
+          for (int c = 0; c < 4; ++c) {
+            P(r, c) = p[4 * r + c];
+          }
+        }
+        std::string error;
+        const std::optional<DecomposeResult> krt = DecomposeProjection(P, &error);
+        if (!krt) {
+          throw ConfigError::At(file_, LineOf(Key("P")), Path("P") + ": " + error);
+        }
+        camera.K = krt->K;
+        camera.R_CW = krt->R_CW;
+        camera.t_CW = krt->t_CW;
+      });
       return camera;
     }
     if (has_look_at) {
       for (const char* key : {"K", "position", "look_at"}) {
-        Require(key);
+        Check([&] { Require(key); });
       }
-      camera.K = Matrix3("K");
-      CheckIntrinsics(camera.K);
-      SetLookAtPose(&camera);
+      if (Has("K")) {
+        Check([&] {
+          camera.K = Matrix3("K");
+          CheckIntrinsics(camera.K);
+        });
+      }
+      if (Has("position") && Has("look_at")) Check([&] { SetLookAtPose(&camera); });
       return camera;
     }
     for (const char* key : {"K", "R", "t"}) {
-      Require(key);
+      Check([&] { Require(key); });
     }
-    camera.K = Matrix3("K");
-    camera.R_CW = Matrix3("R");
-    const std::vector<double> t = Numbers("t", 3);
-    camera.t_CW = Eigen::Vector3d(t[0], t[1], t[2]);
-    CheckIntrinsics(camera.K);
-    CheckRotation(camera.R_CW);
+    bool k_read = false;
+    bool r_read = false;
+    if (Has("K")) {
+      Check([&] {
+        camera.K = Matrix3("K");
+        k_read = true;
+      });
+    }
+    if (Has("R")) {
+      Check([&] {
+        camera.R_CW = Matrix3("R");
+        r_read = true;
+      });
+    }
+    if (Has("t")) {
+      Check([&] {
+        const std::vector<double> t = Numbers("t", 3);
+        camera.t_CW = Eigen::Vector3d(t[0], t[1], t[2]);
+      });
+    }
+    if (k_read) Check([&] { CheckIntrinsics(camera.K); });
+    if (r_read) Check([&] { CheckRotation(camera.R_CW); });
     return camera;
   }
 
@@ -134,6 +169,21 @@ class CameraParser {
   [[nodiscard]] int name_line() const { return LineOf(Key("name")); }
 
  private:
+  /// Runs one check that does not depend on the others having passed: when
+  /// collecting, its problem is recorded and parsing goes on.
+  template <typename F>
+  void Check(F&& check) {
+    if (errors_ == nullptr) {
+      check();
+      return;
+    }
+    try {
+      check();
+    } catch (const ConfigError& e) {
+      errors_->emplace_back(e.what());
+    }
+  }
+
   [[nodiscard]] std::string Prefix() const { return where_.empty() ? "" : where_ + ": "; }
   [[nodiscard]] std::string Path(const std::string& key) const {
     return where_.empty() ? key : where_ + "." + key;
@@ -288,6 +338,7 @@ class CameraParser {
   const YAML::Node& node_;
   const std::string& file_;
   std::string where_;
+  std::vector<std::string>* errors_;  ///< Null: the first problem is thrown.
   // Key name -> (key node, value node), in document order of first appearance.
   std::map<std::string, std::pair<YAML::Node, YAML::Node>> keys_;
 };
@@ -296,6 +347,18 @@ class CameraParser {
 
 CameraModel ParseCamera(const YAML::Node& node, const std::string& file) {
   return CameraParser(node, file, "").Parse();
+}
+
+std::optional<CameraModel> ParseCameraReportingAll(const YAML::Node& node, const std::string& file,
+                                                   std::vector<std::string>* errors) {
+  const std::size_t before = errors->size();
+  try {
+    CameraModel camera = CameraParser(node, file, "", errors).Parse();
+    if (errors->size() == before) return camera;
+  } catch (const ConfigError& e) {  // Not a map: nothing else to check.
+    errors->emplace_back(e.what());
+  }
+  return std::nullopt;
 }
 
 std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::string& file) {

@@ -3,6 +3,7 @@
 /// Reading and writing the camera block (the `cameras:` list of a cameras file
 /// or of the daemon config).
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +25,16 @@ namespace hg::geometry {
 /// error. Unknown keys are rejected.
 /// @throws common::ConfigError naming `file`, the line and the key.
 [[nodiscard]] CameraModel ParseCamera(const YAML::Node& node, const std::string& file);
+
+/// Parses one camera entry as ParseCamera does, but goes on past a problem:
+/// every problem found is appended to `errors` (one message each, as
+/// ParseCamera would throw it), so that a loader can report them all. Checks
+/// that depend on a failed one are skipped (a mix of projection forms stops
+/// the projection's checks).
+/// @returns the camera, or nullopt when any problem was found.
+[[nodiscard]] std::optional<CameraModel> ParseCameraReportingAll(const YAML::Node& node,
+                                                                 const std::string& file,
+                                                                 std::vector<std::string>* errors);
 
 /// Parses a `cameras:` sequence node (every entry, names unique).
 /// @throws common::ConfigError naming `file`, the line and the key.

@@ -6,12 +6,16 @@
 #include <string>
 #include <vector>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
+#include <yaml-cpp/yaml.h>
 
 #include "app/config_doc.h"
 #include "app/pipeline_setup.h"
 #include "app/tracking_stage.h"
 #include "common/config_error.h"
+#include "geometry/camera_yaml.h"
 #include "support/run_tool.h"
 
 namespace hg::app {
@@ -33,7 +37,7 @@ cameras:
   - name: cam0
     width: 1920
     height: 1080
-    K: [1083.5, 0, 959.5, 0, 1083.5, 539.5, 0, 0, 1]
+    K: [1083.5787063372297, 0, 959.5, 0, 1083.5787063372297, 539.5, 0, 0, 1]
     position: [-0.3, -0.3, 3.6]
     look_at: [2, 2, 1]
     source: {type: sim, scene: scenes/demo_cell.yaml}
@@ -287,8 +291,8 @@ const Mistake kMistakes[] = {
     {"align_to_frames: false", "align_to_frames: maybe", 4, "timing.align_to_frames", "expected"},
     {"octree: 4", "octree: 0", 5, "threads.octree", "must be in 1 .. 64"},
     {"width: 1920", "width: wide", 8, "cameras[0].width", "positive integer"},
-    {"K: [1083.5, 0, 959.5, 0, 1083.5, 539.5, 0, 0, 1]", "K: [1, 2, 3]", 10, "cameras[0].K",
-     "expected 9 numbers"},
+    {"K: [1083.5787063372297, 0, 959.5, 0, 1083.5787063372297, 539.5, 0, 0, 1]", "K: [1, 2, 3]", 10,
+     "cameras[0].K", "expected 9 numbers"},
     {"type: sim", "type: usb", 13, "cameras[0].source.type",
      "unknown source type 'usb' (expected sim, replay, aravis or v4l2)"},
     {"scene: scenes/demo_cell.yaml", "scene: scenes/nope.yaml", 13, "cameras[0].source.scene",
@@ -329,6 +333,18 @@ const Mistake kMistakes[] = {
     {"max_speed_mps: 1.6", "max_speed_mps: -1", 49, "motion.max_speed_mps", "must be in 0 .. 20"},
     {"min_camera_distance_m: 1.5", "min_camera_dist: 1.5", 49, "motion",
      "unknown key 'min_camera_dist'"},
+    // The sim camera's block must be the scene's camera (the renderer draws the
+    // scene's, the pipeline projects with the block).
+    {"width: 1920", "width: 1280", 8, "cameras[0].width",
+     "is 1280 but camera 'cam0' of scene 'scenes/demo_cell.yaml' has 1920"},
+    {"height: 1080", "height: 1088", 9, "cameras[0].height", "has 1080"},
+    {"959.5, 0, 1083", "959.50001, 0, 1083", 10, "cameras[0].K",
+     "differs from camera 'cam0' of scene 'scenes/demo_cell.yaml': K[2] 959.50001 here, 959.5 in "
+     "the scene"},
+    {"position: [-0.3, -0.3, 3.6]", "position: [-0.3, -0.3, 3.5]", 11, "cameras[0].position",
+     "the pose differs from camera 'cam0'"},
+    {"look_at: [2, 2, 1]\n", "look_at: [2, 2, 1]\n    distortion: [0.1, 0, 0, 0, 0]\n", 13,
+     "cameras[0].distortion", "distortion[0] 0.1 here, 0 in the scene"},
 };
 
 TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {
@@ -464,6 +480,286 @@ TEST(HullguarddTest, LogLevelDropsLinesBelowIt) {
   fs::remove(path);
   EXPECT_EQ(run.code, 0) << run.err;
   EXPECT_EQ(run.err, "");
+}
+
+/// A fresh folder for one test's files, removed with them.
+class TempDir {
+ public:
+  TempDir()
+      : path_(fs::temp_directory_path() /
+              std::string("hg_config_test_")
+                  .append(std::to_string(::getpid()))
+                  .append("_")
+                  .append(::testing::UnitTest::GetInstance()->current_test_info()->name())) {
+    fs::remove_all(path_);
+    fs::create_directories(path_);
+  }
+  ~TempDir() { fs::remove_all(path_); }
+  TempDir(const TempDir&) = delete;
+  TempDir& operator=(const TempDir&) = delete;
+
+  /// Writes `text` to the file `name` in the folder; returns its path.
+  std::string Write(const std::string& name, const std::string& text) const {
+    const std::string path = (path_ / name).string();
+    std::ofstream(path) << text;
+    return path;
+  }
+  [[nodiscard]] std::string Path(const std::string& name) const { return (path_ / name).string(); }
+  [[nodiscard]] std::string str() const { return path_.string(); }
+
+ private:
+  fs::path path_;
+};
+
+/// A scene with one small camera in the K, R, t form.
+const char* const kSmallScene = R"(scene:
+  name: small
+  bounds: {min: [0, 0, 0], max: [4, 4, 4]}
+  rate_hz: 30
+cameras:
+  - name: a
+    width: 64
+    height: 48
+    K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1]
+    distortion: [0.01, 0, 0, 0, 0]
+    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    t: [0, 0, 1]
+)";
+
+/// A config rendering camera `a` of kSmallScene (as scene.yaml next to it).
+const char* const kSimConfig = R"(cell:
+  bounds: {min: [0, 0, 0], max: [4, 4, 4]}
+cameras:
+  - name: a
+    width: 64
+    height: 48
+    K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1]
+    distortion: [0.01, 0, 0, 0, 0]
+    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    t: [0, 0, 1]
+    source: {type: sim, scene: scene.yaml}
+)";
+
+/// The message of the ConfigError that parsing `text` as c.yaml in `dir` throws ("" if none).
+std::string ErrorIn(const TempDir& dir, const std::string& text) {
+  try {
+    (void)ParseConfig(text, "c.yaml", dir.str());
+  } catch (const common::ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// The scene of a sim source is loaded whole at validation; its own error (its
+// file and line) is reported at the config's source.scene key, and
+// --check-config fails on it.
+TEST(ConfigSceneTest, ASceneThatDoesNotLoadIsReportedAtTheSceneKey) {
+  const TempDir dir;
+  dir.Write("scene.yaml", Replace(kSmallScene, "rate_hz: 30", "rate_hz: fast"));
+  const std::string error = ErrorIn(dir, kSimConfig);
+  ASSERT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_EQ(error.rfind("c.yaml:11: cameras[0].source.scene: bad scene: " + dir.Path("scene.yaml") +
+                            ":4: scene.rate_hz: ",
+                        0),
+            0u)
+      << error;
+
+  // Two cameras of one bad scene: one load, one error, at the first reference.
+  const std::string entry =
+      std::string(kSimConfig).substr(std::string(kSimConfig).find("  - name: a"));
+  const std::string two = kSimConfig + Replace(entry, "name: a", "name: b");
+  EXPECT_EQ(Lines(ErrorIn(dir, two)).size(), 1u) << ErrorIn(dir, two);
+
+  // Also when the black box sizes its rings from the scene's rate (that read
+  // used to throw a yaml-cpp conversion error out of the loader: an abort).
+  const std::string config = dir.Write(
+      "c.yaml", std::string(kSimConfig) + "blackbox: {seconds: 1, dir: " + dir.Path("box") +
+                    ", max_memory_mb: 64}\n");
+  for (const char* flag : {"--check-config ", "--config "}) {
+    const testing::ProcessResult r = testing::RunTool(HG_HULLGUARDD_BIN, flag + config);
+    EXPECT_EQ(r.code, 2) << flag << r.err;
+    EXPECT_EQ(r.out, "");
+    EXPECT_EQ(Lines(r.err).size(), 1u) << r.err;
+    EXPECT_NE(r.err.find(config + ":11: cameras[0].source.scene: bad scene: "), std::string::npos)
+        << r.err;
+  }
+}
+
+// A scene that breaks after validation: what the daemon reads from it at
+// start-up fails with a ConfigError (exit 2), not a yaml-cpp exception.
+TEST(ConfigSceneTest, ASceneBrokenAfterLoadingFailsWithAConfigError) {
+  const TempDir dir;
+  dir.Write("scene.yaml", kSmallScene);
+  const Config config = ParseConfig(kSimConfig, "c.yaml", dir.str());
+  EXPECT_EQ(BlackBoxCameras(config).at(0).rate_hz, 30.0);
+  dir.Write("scene.yaml", Replace(kSmallScene, "rate_hz: 30", "rate_hz: fast"));
+  EXPECT_THROW((void)BlackBoxCameras(config), common::ConfigError);
+  EXPECT_THROW((void)MakeCameras(config, capture::SimClock::Now()), common::ConfigError);
+}
+
+// The camera block of a sim camera must be the scene's camera of that name:
+// the size exactly, K, distortion, R and t to 1e-9 relative, in any form.
+TEST(ConfigSceneTest, TheCameraBlockMustBeTheScenesCamera) {
+  const TempDir dir;
+  dir.Write("scene.yaml", kSmallScene);
+  ASSERT_EQ(ErrorIn(dir, kSimConfig), "");
+  // The same camera as P = K [R | t].
+  const std::string as_p = Replace(kSimConfig,
+                                   "    K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1]\n"
+                                   "    distortion: [0.01, 0, 0, 0, 0]\n"
+                                   "    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]\n"
+                                   "    t: [0, 0, 1]\n",
+                                   "    P: [50, 0, 31.5, 31.5, 0, 50, 23.5, 23.5, 0, 0, 1, 1]\n"
+                                   "    distortion: [0.01, 0, 0, 0, 0]\n");
+  EXPECT_EQ(ErrorIn(dir, as_p), "");
+
+  const Mistake mistakes[] = {
+      {"width: 64", "width: 66", 5, "cameras[0].width",
+       "is 66 but camera 'a' of scene 'scene.yaml' has 64: every frame would be the wrong size"},
+      {"height: 48", "height: 47", 6, "cameras[0].height", "is 47 but"},
+      {"50, 0, 31.5,", "50, 0, 31.50001,", 7, "cameras[0].K",
+       "differs from camera 'a' of scene 'scene.yaml': K[2] 31.50001 here, 31.5 in the scene"},
+      {"distortion: [0.01, 0", "distortion: [0.02, 0", 8, "cameras[0].distortion",
+       "distortion[0] 0.02 here, 0.01 in the scene"},
+      {"    distortion: [0.01, 0, 0, 0, 0]\n", "", 4, "cameras[0].distortion",
+       "distortion[0] 0 here, 0.01 in the scene"},
+      {"R: [1, 0, 0, 0, 1, 0, 0, 0, 1]", "R: [0, -1, 0, 1, 0, 0, 0, 0, 1]", 9, "cameras[0].R",
+       "R[0] 0 here, 1 in the scene"},
+      {"t: [0, 0, 1]", "t: [0, 0, 1.000001]", 10, "cameras[0].t",
+       "t[2] 1.000001 here, 1 in the scene"},
+      {"name: a", "name: b", 11, "cameras[0].source.camera",
+       "scene 'scene.yaml' has no camera 'b' (it has a)"},
+  };
+  for (const Mistake& m : mistakes) {
+    const std::string error = ErrorIn(dir, Replace(kSimConfig, m.from, m.to));
+    SCOPED_TRACE(std::string(m.from) + " -> " + m.to);
+    EXPECT_EQ(Lines(error).size(), 1u) << error;
+    EXPECT_EQ(error.rfind("c.yaml:" + std::to_string(m.line) + ": " + m.path + ": ", 0), 0u)
+        << error;
+    EXPECT_NE(error.find(m.problem), std::string::npos) << error;
+  }
+  // Within the tolerance: the same camera.
+  EXPECT_EQ(ErrorIn(dir, Replace(kSimConfig, "t: [0, 0, 1]", "t: [0, 0, 1.0000000000001]")), "");
+  // K, R and t from P: a difference is reported at P.
+  const std::string error = ErrorIn(dir, Replace(as_p, "23.5, 0, 0, 1, 1]", "23.5, 0, 0, 1, 2]"));
+  EXPECT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_EQ(error.rfind("c.yaml:7: cameras[0].P: the pose differs from camera 'a'", 0), 0u)
+      << error;
+
+  // The daemon refuses it too, before any camera is opened.
+  const std::string config = dir.Write("c.yaml", Replace(kSimConfig, "width: 64", "width: 66"));
+  const testing::ProcessResult r = testing::RunTool(HG_HULLGUARDD_BIN, "--config " + config);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find(config + ":5: cameras[0].width: is 66 but"), std::string::npos) << r.err;
+}
+
+// Obstacle meshes are loaded at validation: a file that is no mesh, or a
+// malformed one, is reported at the obstacle's key.
+TEST(ConfigTest, ObstacleMeshesAreLoaded) {
+  const TempDir dir;
+  const struct {
+    const char* name;
+    const char* text;
+    const char* problem;
+  } meshes[] = {
+      {"garbage.obj", "this is no mesh\nat all\n", "has no triangles"},
+      {"vertices.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\n", "has no triangles"},
+      {"number.obj", "v 0 0 0\nv 1 x 0\nv 0 1 0\nf 1 2 3\n", "bad mesh: "},
+      {"index.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n", "bad mesh: "},
+      {"garbage.stl", "solid x\n  facet nonsense\n", "bad mesh: "},
+  };
+  for (const auto& mesh : meshes) {
+    SCOPED_TRACE(mesh.name);
+    const std::string path = dir.Write(mesh.name, mesh.text);
+    const std::string error = ErrorOf(Replace(kFull, "demo_cell/obstacles.obj", path));
+    EXPECT_EQ(Lines(error).size(), 1u) << error;
+    EXPECT_EQ(error.rfind("t.yaml:46: obstacles[0].file: ", 0), 0u) << error;
+    EXPECT_NE(error.find(mesh.problem), std::string::npos) << error;
+  }
+  const std::string path = dir.Write("ok.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  EXPECT_EQ(ErrorOf(Replace(kFull, "demo_cell/obstacles.obj", path)), "");
+}
+
+// Every problem of a camera block is reported, not only the first; the
+// stand-alone parser (`hullguard carve --cameras`) still stops at the first.
+TEST(ConfigTest, EveryProblemOfACameraBlockIsReported) {
+  const std::string text =
+      Replace(Replace(Replace(kMinimal, "height: 48", "height: 0"), "0, 0, 1]", "0, 0, 1, 7]"),
+              "R: [1, 0, 0, 0, 1, 0, 0, 0, 1]", "R: [1, 0, 0, 0, 1, 0, 0, 0, 2]");
+  const std::vector<std::string> lines = Lines(ErrorOf(text));
+  ASSERT_EQ(lines.size(), 3u) << ErrorOf(text);
+  EXPECT_EQ(lines[0].rfind("t.yaml:6: cameras[0].height: expected a positive integer", 0), 0u);
+  EXPECT_EQ(lines[1], "t.yaml:7: cameras[0].K: expected 9 numbers, got 10");
+  EXPECT_EQ(lines[2].rfind("t.yaml:8: cameras[0].R: R is not a rotation", 0), 0u) << lines[2];
+
+  const YAML::Node block = YAML::Load(
+      "{name: a, width: 64, height: 0, K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1, 7], "
+      "R: [1, 0, 0, 0, 1, 0, 0, 0, 2], t: [0, 0, 1]}");
+  try {
+    (void)geometry::ParseCamera(block, "cams.yaml");
+    ADD_FAILURE() << "no error";
+  } catch (const common::ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("cams.yaml:1: height: expected a positive integer", 0),
+              0u)
+        << e.what();
+  }
+  std::vector<std::string> errors;
+  EXPECT_FALSE(geometry::ParseCameraReportingAll(block, "cams.yaml", &errors).has_value());
+  EXPECT_EQ(errors.size(), 3u);
+}
+
+// MakeCameras reads every scene and recording before it makes any source
+// (making a V4L2 source opens its device, an Aravis one starts connecting):
+// a bad recording after a V4L2 camera fails without touching the device.
+TEST(ConfigTest, CamerasAreMadeOnlyOnceEverythingHasLoaded) {
+  const TempDir dir;
+  Config config;
+  config.source_file = "c.yaml";
+  CameraConfig usb;
+  usb.model.name = "usb";
+  usb.model.width = 64;
+  usb.model.height = 48;
+  V4l2SourceConfig device;
+  device.device = dir.Path("no_such_video");
+  usb.source = device;
+  CameraConfig rec = usb;
+  rec.model.name = "rec";
+  ReplaySourceConfig recording;
+  recording.directory = dir.str();
+  recording.camera = "rec";
+  rec.source = recording;
+  config.cameras = {usb, rec};
+  // Made in config order, the V4L2 source would fail first, as a device
+  // that cannot be opened (std::runtime_error), not a ConfigError.
+  EXPECT_THROW((void)MakeCameras(config, capture::SimClock::Now()), common::ConfigError);
+}
+
+// A command line that cannot be parsed, like a config that cannot be read,
+// exits with 2 (which systemd does not restart) and says why in one line.
+TEST(HullguarddTest, CommandLineErrorsExitWithTwo) {
+  const testing::ProcessResult missing =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--config /nonexistent/hullguard.yaml");
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_EQ(missing.err, "/nonexistent/hullguard.yaml: cannot open\n");
+  const testing::ProcessResult check =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--check-config /nonexistent/hullguard.yaml");
+  EXPECT_EQ(check.code, 2);
+  EXPECT_EQ(check.err, "/nonexistent/hullguard.yaml: cannot open\n");
+  const testing::ProcessResult folder = testing::RunTool(HG_HULLGUARDD_BIN, "--config /");
+  EXPECT_EQ(folder.code, 2);
+  EXPECT_EQ(Lines(folder.err).size(), 1u) << folder.err;
+  for (const char* args :
+       {"--bogus", "--config", "--duration -1 --config x.yaml", "--duration soon --config x.yaml",
+        "--config a.yaml --check-config b.yaml", "stray"}) {
+    const testing::ProcessResult r = testing::RunTool(HG_HULLGUARDD_BIN, args);
+    EXPECT_EQ(r.code, 2) << args << ": " << r.err;
+    EXPECT_EQ(r.out, "") << args;
+    EXPECT_EQ(Lines(r.err).size(), 1u) << args << ": " << r.err;
+    EXPECT_EQ(r.err.rfind("hullguardd: ", 0), 0u) << args << ": " << r.err;
+  }
+  const testing::ProcessResult help = testing::RunTool(HG_HULLGUARDD_BIN, "--help");
+  EXPECT_EQ(help.code, 0);
+  EXPECT_NE(help.out.find("--check-config"), std::string::npos) << help.out;
 }
 
 TEST(ConfigTrackingTest, DefaultsAreTheTrackersOwn) {
