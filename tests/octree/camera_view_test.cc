@@ -1,9 +1,15 @@
-// The static obstacle relation of a box: the verdict it gives equals the one
-// looked up directly, and a clear or a behind box passes that on to its sub-boxes.
+// The footprints a camera view computes, against an independent projection of
+// the box corners; the static obstacle relation of a box: the verdict it gives
+// equals the one looked up directly, and a clear or a behind box passes that on
+// to its sub-boxes.
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
+#include "geometry/footprint.h"
 #include "octree/camera_view.h"
 #include "octree/octree.h"
 #include "silhouette/quadtree.h"
@@ -11,6 +17,138 @@
 
 namespace hg::octree {
 namespace {
+
+// A random pinhole camera: any rotation, centre within 4 m of the origin,
+// focal lengths 50 .. 2000 px, principal point anywhere near the image, some
+// skew, image 16 .. 1920 px wide.
+geometry::CameraModel RandomCamera(std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  geometry::CameraModel cam;
+  cam.width = 16 + static_cast<int>(u01(rng) * 1904);
+  cam.height = 16 + static_cast<int>(u01(rng) * 1064);
+  const double fx = 50.0 + 1950.0 * u01(rng);
+  cam.K << fx, (u01(rng) < 0.3 ? 0.05 * fx * (u01(rng) - 0.5) : 0.0),
+      cam.width * (1.5 * u01(rng) - 0.25), 0.0, fx * (0.8 + 0.4 * u01(rng)),
+      cam.height * (1.5 * u01(rng) - 0.25), 0.0, 0.0, 1.0;
+  cam.R_CW =
+      Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng)).normalized().matrix();
+  const Eigen::Vector3d centre_W =
+      Eigen::Vector3d(u01(rng) - 0.5, u01(rng) - 0.5, u01(rng) - 0.5) * 8.0;
+  cam.t_CW = -cam.R_CW * centre_W;
+  return cam;
+}
+
+// The pixel holding image coordinate x (pixel u covers [u - 0.5, u + 0.5)),
+// clamped at +-1e9 as the engine does far outside any image.
+int PixelOfCoordinate(double x) {
+  return static_cast<int>(std::floor(std::clamp(x + 0.5, -1e9, 1e9)));
+}
+
+// Distance (px) from x to the nearest pixel border (x + 0.5 an integer).
+double ToPixelBorder(double x) { return std::abs(x + 0.5 - std::round(x + 0.5)); }
+
+// BoxProjector::Project (through CameraView, as the octree uses it) against an
+// independent projection of the 8 corners from K, R, t with plain Eigen
+// arithmetic. The footprint must be the same integer rectangle: the engine
+// widens the corners' range by kFootprintSlackPx before rounding, so one of its
+// bounds may lie one pixel further out exactly where the matching extreme
+// corner lies within that slack (plus rounding) of a pixel border, never
+// elsewhere, and never one pixel further in.
+TEST(BoxProjectorTest, FootprintEqualsIndependentCornerProjection) {
+  using Side = geometry::Footprint::Side;
+  constexpr double kBorderBand = geometry::kFootprintSlackPx + 1e-8;
+  std::mt19937_64 rng(2024);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  int compared = 0, exact = 0, widened = 0, behind = 0, straddling = 0;
+  for (int camera = 0; camera < 300; ++camera) {
+    const geometry::CameraModel cam = RandomCamera(rng);
+    const CameraView view(cam, {});
+    for (int trial = 0; trial < 40; ++trial) {
+      // Boxes of 1 mm .. 3 m anywhere around the camera; every second one has a
+      // corner placed on a pixel border (back-projected from u or v = k + 0.5),
+      // where the engine and the independent projection may round apart, or
+      // 1e-9 .. 1e-2 px to either side of one, where the slack may widen the
+      // rectangle (within 1e-6 px) or must not.
+      const Eigen::Vector3d size =
+          Eigen::Vector3d(u01(rng), u01(rng), u01(rng)).unaryExpr([](double t) {
+            return std::pow(10.0, -3.0 + 3.5 * t);
+          });
+      Eigen::Vector3d lo = Eigen::Vector3d(u01(rng) - 0.5, u01(rng) - 0.5, u01(rng) - 0.5) * 12.0;
+      if (trial % 2 == 1) {
+        const double depth = 0.1 + 6.0 * u01(rng);
+        const double offset =
+            trial % 8 < 4 ? 0.0 : (u01(rng) < 0.5 ? -1 : 1) * std::pow(10.0, -9.0 + 7.0 * u01(rng));
+        double u = -0.5 + std::floor(u01(rng) * (cam.width + 1)) + offset;
+        double v = cam.height * u01(rng);
+        if (trial % 4 == 3) std::swap(u, v);  // A v border instead (v may leave the image).
+        const Eigen::Vector3d p_C = depth * (cam.K.inverse() * Eigen::Vector3d(u, v, 1.0));
+        const Eigen::Vector3d p_W = cam.R_CW.transpose() * (p_C - cam.t_CW);
+        // The corner on the border is the box's lower or its upper corner.
+        lo = u01(rng) < 0.5 ? p_W : Eigen::Vector3d(p_W - size);
+      }
+      const Eigen::Vector3d hi = lo + size;
+      const geometry::Footprint fp = view.projector().Project(lo, hi);
+
+      double z_min = 0, z_max = 0, u_min = 0, u_max = 0, v_min = 0, v_max = 0;
+      for (int i = 0; i < 8; ++i) {
+        const Eigen::Vector3d p_W((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(),
+                                  (i & 4) ? hi.z() : lo.z());
+        const Eigen::Vector3d p_C = cam.R_CW * p_W + cam.t_CW;
+        const Eigen::Vector3d uvw = cam.K * p_C;
+        const double z = p_C.z(), u = uvw.x() / z, v = uvw.y() / z;
+        z_min = i == 0 ? z : std::min(z_min, z);
+        z_max = i == 0 ? z : std::max(z_max, z);
+        u_min = i == 0 ? u : std::min(u_min, u);
+        u_max = i == 0 ? u : std::max(u_max, u);
+        v_min = i == 0 ? v : std::min(v_min, v);
+        v_max = i == 0 ? v : std::max(v_max, v);
+      }
+      const auto where = [&] {
+        return ::testing::Message() << "camera " << camera << " trial " << trial << " box ["
+                                    << lo.transpose() << "] .. [" << hi.transpose() << "]";
+      };
+      ASSERT_NEAR(fp.z_near, z_min, 1e-9 * (1.0 + std::abs(z_min))) << where();
+      ASSERT_NEAR(fp.z_far, z_max, 1e-9 * (1.0 + std::abs(z_max))) << where();
+      // Sides, away from the thresholds (no random box comes within 1e-9 of them).
+      if (std::abs(z_max) < 1e-9 || std::abs(z_min - geometry::kMinFrontDepth) < 1e-9) continue;
+      const Side side = z_max <= 0.0                        ? Side::kBehind
+                        : z_min <= geometry::kMinFrontDepth ? Side::kStraddling
+                                                            : Side::kInFront;
+      ASSERT_EQ(fp.side, side) << where();
+      behind += side == Side::kBehind;
+      straddling += side == Side::kStraddling;
+      // Rectangles of boxes at least 1 cm in front, where both projections
+      // agree to far better than the band.
+      if (side != Side::kInFront || z_min < 0.01) continue;
+      ++compared;
+      const geometry::PixelRect& r = fp.rect;
+      const int want[4] = {PixelOfCoordinate(u_min), PixelOfCoordinate(v_min),
+                           PixelOfCoordinate(u_max), PixelOfCoordinate(v_max)};
+      const int got[4] = {r.u0, r.v0, r.u1, r.v1};
+      const double extreme[4] = {u_min, v_min, u_max, v_max};
+      bool all_equal = true;
+      for (int b = 0; b < 4; ++b) {
+        if (got[b] == want[b]) continue;
+        all_equal = false;
+        const int outwards = b < 2 ? -1 : 1;  // Lower bounds grow down, upper ones up.
+        ASSERT_EQ(got[b], want[b] + outwards)
+            << where() << " bound " << b << " at " << extreme[b] << ": engine " << got[b]
+            << ", independent " << want[b];
+        ASSERT_LE(ToPixelBorder(extreme[b]), kBorderBand)
+            << where() << " bound " << b << " at " << extreme[b] << " widened off a border";
+      }
+      exact += all_equal;
+      widened += !all_equal;
+    }
+  }
+  // Thousands of rectangles compared, the border case met, and the widening rare.
+  EXPECT_GT(compared, 5000);
+  EXPECT_GT(widened, 100);
+  EXPECT_GT(exact, 4 * widened);
+  EXPECT_GT(behind, 100);
+  EXPECT_GT(straddling, 100);
+}
 
 TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxes) {
   int seen_clear = 0, seen_behind = 0, seen_partial = 0;

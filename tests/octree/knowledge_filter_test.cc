@@ -1,5 +1,12 @@
 #include "octree/knowledge_filter.h"
 
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
 #include <gtest/gtest.h>
 
 #include "scene/shapes.h"
@@ -7,6 +14,12 @@
 
 namespace hg::octree {
 namespace {
+
+std::string Describe(const Cell& c) {
+  std::ostringstream out;
+  out << "(" << c.level << " " << c.x << " " << c.y << " " << c.z << ")";
+  return out.str();
+}
 
 struct Carved {
   std::vector<silhouette::SilhouetteQuadtree> trees;
@@ -50,16 +63,98 @@ TEST(KnowledgeFilterTest, DropsSmallBlobsKeepsLargeOnes) {
   EXPECT_EQ(r.StateAt(*c.tree, big.centre_W), PointState::kOccupied);
 }
 
-TEST(KnowledgeFilterTest, DiagonalNeighboursFormOneComponent) {
-  // Two capsules meeting only at a point: one component, not dropped when the sum is large.
-  const scene::Capsule a{{0.5, 0.5, 0.5}, {1.0, 1.0, 1.0}, 0.12};
-  const scene::Capsule b{{1.0, 1.0, 1.0}, {1.5, 0.5, 1.5}, 0.12};
-  const Carved c = Carve({a, b});
-  const KnowledgeFilterResult r = FilterSmallComponents(*c.tree, 0.0);
-  const KnowledgeFilterResult big = FilterSmallComponents(*c.tree, 0.02);
-  EXPECT_EQ(big.StateAt(*c.tree, {0.5, 0.5, 0.5}), PointState::kOccupied);
-  EXPECT_EQ(big.StateAt(*c.tree, {1.5, 0.5, 1.5}), PointState::kOccupied);
-  EXPECT_GE(r.components, 1);
+// Occupied leaves of a tree, as "(level x y z)" text, sorted.
+std::vector<std::string> OccupiedCells(const Octree& tree) {
+  std::vector<std::string> cells;
+  tree.ForEachLeaf([&](const Cell& c, LeafState s) {
+    if (s == LeafState::kOccupied) cells.push_back(Describe(c));
+  });
+  std::sort(cells.begin(), cells.end());
+  return cells;
+}
+
+// Specks (spheres of radius 15 mm) at the centres of the given cells of level
+// kSpeckDepth (125 mm) in [0, 2]^3, carved by 16 cameras from all sides: each
+// speck's silhouette lies well inside its cell's footprint in every camera,
+// and for every other cell some camera sees only background, so the occupied
+// leaves are those cells (the tests check it).
+constexpr int kSpeckDepth = 4;
+const common::Box3 kSpeckBounds{{0, 0, 0}, {2, 2, 2}};
+
+struct Specks {
+  std::vector<silhouette::SilhouetteQuadtree> trees;
+  std::unique_ptr<Octree> tree;
+};
+
+Specks CarveSpecks(const std::vector<Cell>& cells) {
+  std::vector<scene::Shape> specks;
+  for (const Cell& c : cells) {
+    const common::Box3 box = CellBox(kSpeckBounds, c);
+    specks.push_back(scene::Sphere{0.5 * (box.min + box.max), 0.015});
+  }
+  // Two rings of 7 around the middle, 20 degrees above and below, and two
+  // steep views from above and below, which tell apart the cells of one layer.
+  std::vector<geometry::CameraModel> cams;
+  const Eigen::Vector3d centre(1, 1, 1);
+  for (int i = 0; i < 16; ++i) {
+    const double azimuth = i * 2 * M_PI / 7 + (i >= 7 ? M_PI / 7 : 0.0);
+    const double elevation = i < 7 ? 0.35 : i < 14 ? -0.35 : (i == 14 ? 1.25 : -1.25);
+    const Eigen::Vector3d dir(std::cos(elevation) * std::cos(azimuth),
+                              std::cos(elevation) * std::sin(azimuth), std::sin(elevation));
+    cams.push_back(testing::LookAtCamera(centre + 3.5 * dir, centre, 320, 240, 300));
+  }
+  const auto masks = testing::RenderMasks(cams, specks);
+  Specks out;
+  for (const auto& c : cams) out.trees.emplace_back(c.width, c.height);
+  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    out.trees[i].Build(masks[i].View(), 127);
+    ptrs.push_back(&out.trees[i]);
+  }
+  out.tree = std::make_unique<Octree>(OctreeConfig{kSpeckBounds, kSpeckDepth, 2},
+                                      testing::MakeViews(cams, {}));
+  out.tree->Update(ptrs);
+  return out;
+}
+
+// Two occupied cells that share only a corner or only an edge (26-connected,
+// not 6-connected), each below the volume limit and the two together above
+// it: one component, kept. The control, one empty cell between them: two
+// components, both dropped.
+TEST(KnowledgeFilterTest, CellsTouchingAtACornerOrAnEdgeFormOneComponent) {
+  const Cell a{kSpeckDepth, 7, 7, 7};
+  const double cell_volume = CellBox(kSpeckBounds, a).Volume();
+  const double limit = 1.5 * cell_volume;
+  struct Case {
+    const char* name;
+    Cell b;
+    bool touching;
+  };
+  const Case cases[] = {{"corner", {kSpeckDepth, 8, 8, 8}, true},
+                        {"edge", {kSpeckDepth, 8, 8, 7}, true},
+                        {"corner, one cell apart", {kSpeckDepth, 9, 9, 9}, false},
+                        {"edge, one cell apart", {kSpeckDepth, 9, 9, 7}, false}};
+  for (const Case& k : cases) {
+    SCOPED_TRACE(k.name);
+    const Specks s = CarveSpecks({a, k.b});
+    std::vector<std::string> want = {Describe(a), Describe(k.b)};
+    std::sort(want.begin(), want.end());
+    ASSERT_EQ(OccupiedCells(*s.tree), want);
+    const KnowledgeFilterResult r = FilterSmallComponents(*s.tree, limit);
+    EXPECT_EQ(r.components, k.touching ? 1 : 2);
+    EXPECT_EQ(r.dropped_components, k.touching ? 0 : 2);
+    EXPECT_NEAR(r.dropped_volume_m3, k.touching ? 0.0 : 2 * cell_volume, 1e-12);
+    for (const Cell& c : {a, k.b}) {
+      const common::Box3 box = CellBox(kSpeckBounds, c);
+      const Eigen::Vector3d mid = 0.5 * (box.min + box.max);
+      EXPECT_EQ(r.IsDropped(c), !k.touching) << Describe(c);
+      EXPECT_EQ(r.StateAt(*s.tree, mid), k.touching ? PointState::kOccupied : PointState::kFree)
+          << Describe(c);
+      EXPECT_EQ(s.tree->StateAt(mid), PointState::kOccupied) << Describe(c);
+    }
+    // Below one cell's volume nothing is dropped, touching or not.
+    EXPECT_EQ(FilterSmallComponents(*s.tree, 0.5 * cell_volume).dropped_components, 0);
+  }
 }
 
 }  // namespace

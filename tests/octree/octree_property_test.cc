@@ -1,9 +1,15 @@
 // Seeded property tests of the octree against exact ground truth and the dense oracle.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <limits>
 #include <random>
 #include <set>
+#include <thread>
 
 #include <gtest/gtest.h>
 
+#include "geometry/footprint.h"
 #include "octree/octree.h"
 #include "scene/exact_mask.h"
 #include "silhouette/quadtree.h"
@@ -83,18 +89,98 @@ void ExpectObjectsNotFree(const Octree& tree, const std::vector<scene::Shape>& o
   }
 }
 
-// Octree free set equals the oracle's; the octree's occluded cells are occluded there too.
-void ExpectMatchesOracle(const DenseGrid& octree_grid, const DenseGrid& oracle) {
+// What the dense oracle classifies: the finest cells of `bounds` at `depth`,
+// seen by `cameras` through `masks` (nullptr: lost) and `depth_maps` (empty:
+// no obstacles).
+struct OracleInput {
+  common::Box3 bounds;
+  int depth = 0;
+  std::vector<geometry::CameraModel> cameras;
+  std::vector<const common::ImageU8*> masks;
+  std::vector<geometry::ObstacleDepthMap> depth_maps;
+
+  [[nodiscard]] DenseGrid Carve() const {
+    return testing::DenseCarve(bounds, depth, cameras, masks, depth_maps);
+  }
+};
+
+// True iff some camera's verdict on `box` is FULL by the reconstruction rules
+// (ARCHITECTURE.md), evaluated pixel by pixel: the box lies in front of the
+// camera, its footprint meets the image, every footprint pixel in the image is
+// foreground, and it is not hidden behind the obstacles (the largest
+// centre-ray obstacle depth over the footprint is not below its nearest depth).
+bool FullInSomeCamera(const OracleInput& in, const common::Box3& box) {
+  for (std::size_t c = 0; c < in.cameras.size(); ++c) {
+    const geometry::CameraModel& cam = in.cameras[c];
+    const common::ImageU8* mask = in.masks[c];
+    if (mask == nullptr) continue;
+    const geometry::Footprint fp =
+        geometry::BoxProjector(cam.ProjectionMatrix()).Project(box.min, box.max);
+    if (fp.side != geometry::Footprint::Side::kInFront) continue;
+    const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, cam.width, cam.height);
+    if (clip.Empty()) continue;
+    bool all_foreground = true;
+    float centre_max = -geometry::ObstacleDepthMap::kNone;
+    for (int v = clip.v0; v <= clip.v1; ++v) {
+      for (int u = clip.u0; u <= clip.u1; ++u) {
+        all_foreground = all_foreground && mask->At(u, v) > 127;
+        if (!in.depth_maps.empty()) {
+          centre_max =
+              std::max(centre_max,
+                       in.depth_maps[c].centre_depth[static_cast<std::size_t>(v) * cam.width + u]);
+        }
+      }
+    }
+    const bool hidden = !in.depth_maps.empty() && centre_max < fp.z_near;
+    if (all_foreground && !hidden) return true;
+  }
+  return false;
+}
+
+// The octree's leaves, painted onto the finest grid, hold the oracle's states
+// (`oracle` = in.Carve()) cell by cell. The oracle classifies every finest
+// cell on its own; the octree classifies a node once and lets its children
+// inherit every camera whose verdict on it is FULL or HIDDEN. A sub-box of a
+// HIDDEN box is HIDDEN too, but a sub-box of a FULL box may be HIDDEN itself
+// (outside the image, or behind an obstacle, being farther away than the
+// parent's nearest corner). Where no other camera sees foreground in the cell,
+// the oracle then says occluded while the octree, through the inherited FULL
+// verdict, says occupied. So, exactly:
+//   octree free     <=> oracle free,
+//   octree occluded  => oracle occluded,
+//   oracle occupied  => octree occupied,
+//   octree occupied and oracle occluded only in a cell with a strict ancestor
+//   (level kRootLevel .. depth - 1) that some camera sees FULL.
+// This needs exact geometric boundaries: the tree must be built with
+// boundary_coarsening = 0 (a coarsened boundary stops early as occluded leaves,
+// which the finest-level oracle cannot reproduce).
+void ExpectMatchesOracle(const Octree& tree, const OracleInput& in, const DenseGrid& oracle) {
+  ASSERT_EQ(tree.config().boundary_coarsening, 0);
+  ASSERT_EQ(tree.config().depth, in.depth);
+  const DenseGrid octree_grid = testing::Rasterize(tree);
   ASSERT_EQ(octree_grid.states.size(), oracle.states.size());
+  const std::uint32_t n = 1u << in.depth;
   std::size_t free_cells = 0;
   for (std::size_t i = 0; i < oracle.states.size(); ++i) {
     const auto a = static_cast<LeafState>(octree_grid.states[i]);
     const auto b = static_cast<LeafState>(oracle.states[i]);
-    ASSERT_EQ(a == LeafState::kFree, b == LeafState::kFree) << "cell " << i;
-    if (a == LeafState::kOccluded) {
-      ASSERT_EQ(b, LeafState::kOccluded) << "cell " << i;
-    }
     free_cells += a == LeafState::kFree;
+    if (a == b) continue;
+    const Cell cell{in.depth, static_cast<std::uint32_t>(i % n),
+                    static_cast<std::uint32_t>((i / n) % n), static_cast<std::uint32_t>(i / n / n)};
+    const auto where = [&] {
+      return ::testing::Message() << "cell (" << cell.x << ", " << cell.y << ", " << cell.z
+                                  << ") octree " << static_cast<int>(a) << " oracle "
+                                  << static_cast<int>(b);
+    };
+    ASSERT_TRUE(a == LeafState::kOccupied && b == LeafState::kOccluded) << where();
+    bool inherited_full = false;
+    for (int level = in.depth - 1; level >= Octree::kRootLevel && !inherited_full; --level) {
+      const int shift = in.depth - level;
+      const Cell ancestor{level, cell.x >> shift, cell.y >> shift, cell.z >> shift};
+      inherited_full = FullInSomeCamera(in, CellBox(in.bounds, ancestor));
+    }
+    ASSERT_TRUE(inherited_full) << where() << ": no ancestor is seen full";
   }
   // The scenes are built so that most of the cell is certified free: a test that
   // passes only because nothing is free would prove nothing.
@@ -142,9 +228,9 @@ TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
   EXPECT_FALSE(stats.aborted);
   std::mt19937_64 rng(seed);
   ExpectObjectsNotFree(tree, scene.objects, rng, 2000);
-  const DenseGrid oracle =
-      testing::DenseCarve(scene.bounds, 6, scene.cameras, Pointers(masks), DepthMaps(views));
-  ExpectMatchesOracle(testing::Rasterize(tree), oracle);
+  const OracleInput oracle_input{scene.bounds, 6, scene.cameras, Pointers(masks), DepthMaps(views)};
+  const DenseGrid oracle = oracle_input.Carve();
+  ExpectMatchesOracle(tree, oracle_input, oracle);
 
   // Coarse geometric boundaries only take free space away.
   Octree coarse({scene.bounds, 6, 2, /*boundary_coarsening=*/2}, views);
@@ -184,17 +270,236 @@ TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, RandomSceneTest, ::testing::Range(0, 24));
 
+// Smallest camera depth (z, m) of any point of the shape.
+double NearestDepth(const geometry::CameraModel& cam, const scene::Shape& shape) {
+  const Eigen::Vector3d axis_W = cam.R_CW.row(2).transpose();  // Camera z in the world.
+  return axis_W.dot(scene::Support(shape, -axis_W)) + cam.t_CW.z();
+}
+
+// Per pixel of `cam`: the smallest camera depth D such that some obstacle
+// triangle covers the whole pixel square in front of depth D (infinity where
+// none does). The rays through the four pixel corners must meet the triangle,
+// at least 1e-9 (barycentric) inside it and in front of the camera; then every
+// ray through the pixel meets it (the rays from one point that meet a convex
+// set form a convex cone), at a point in the convex hull of the four corner
+// hits, so no farther away than D = the largest of their depths. Computed with
+// plain Eigen arithmetic, independent of the engine's obstacle depth maps.
+std::vector<double> CoveringTriangleDepth(const geometry::CameraModel& cam,
+                                          const std::vector<geometry::TriangleMesh>& obstacles) {
+  const int w = cam.width, h = cam.height;
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const Eigen::Matrix3d K_inv = cam.K.inverse();
+  // Corner (i, j) at image point (i - 0.5, j - 0.5), i <= w, j <= h.
+  std::vector<double> corner_depth(static_cast<std::size_t>(w + 1) * (h + 1));
+  std::vector<double> covered(static_cast<std::size_t>(w) * h, kInf);
+  for (const auto& mesh : obstacles) {
+    for (const auto& t : mesh.triangles) {
+      const Eigen::Vector3d a = cam.R_CW * mesh.vertices[t[0]] + cam.t_CW;
+      const Eigen::Vector3d b = cam.R_CW * mesh.vertices[t[1]] + cam.t_CW;
+      const Eigen::Vector3d c = cam.R_CW * mesh.vertices[t[2]] + cam.t_CW;
+      const Eigen::Vector3d n = (b - a).cross(c - a);
+      if (n.squaredNorm() == 0.0) continue;
+      std::fill(corner_depth.begin(), corner_depth.end(), kInf);
+      for (int j = 0; j <= h; ++j) {
+        for (int i = 0; i <= w; ++i) {
+          const Eigen::Vector3d d = K_inv * Eigen::Vector3d(i - 0.5, j - 0.5, 1.0);  // d.z() == 1.
+          const double denom = n.dot(d);
+          if (denom == 0.0) continue;
+          const double depth = n.dot(a) / denom;
+          if (!(depth > 1e-3)) continue;
+          const Eigen::Vector3d q = depth * d;
+          const double la = (b - q).cross(c - q).dot(n) / n.squaredNorm();
+          const double lb = (c - q).cross(a - q).dot(n) / n.squaredNorm();
+          const double lc = (a - q).cross(b - q).dot(n) / n.squaredNorm();
+          if (la < 1e-9 || lb < 1e-9 || lc < 1e-9) continue;
+          corner_depth[static_cast<std::size_t>(j) * (w + 1) + i] = depth;
+        }
+      }
+      for (int v = 0; v < h; ++v) {
+        for (int u = 0; u < w; ++u) {
+          const std::size_t k = static_cast<std::size_t>(v) * (w + 1) + u;
+          const double far = std::max({corner_depth[k], corner_depth[k + 1],
+                                       corner_depth[k + w + 1], corner_depth[k + w + 2]});
+          double& out = covered[static_cast<std::size_t>(v) * w + u];
+          out = std::min(out, far);
+        }
+      }
+    }
+  }
+  return covered;
+}
+
+// Masks as real cameras see the scene: exact masks of the objects, except
+// where an object is certainly hidden behind the obstacles. Certainly hidden,
+// for object O in a pixel: O lies inside one of the closed boxes `cabinets`
+// (obstacles too) and the camera outside it, so that every segment from the
+// camera to O crosses the box's surface; or a triangle covers the whole pixel
+// in front of O's nearest point (CoveringTriangleDepth). A pixel where any
+// object is not certainly hidden stays foreground, so the masks hold every
+// pixel where some object is visible: the reconstruction's precondition.
+// Counts the object pixels dropped for each reason (an object's pixel dropped
+// for each object hidden there).
+struct HiddenPixels {
+  std::int64_t enclosed = 0;  ///< The object is inside a cabinet.
+  std::int64_t covered = 0;   ///< A triangle covers the pixel in front of the object.
+};
+std::vector<common::ImageU8> RenderOccludedMasks(
+    const std::vector<geometry::CameraModel>& cameras, const std::vector<scene::Shape>& objects,
+    const std::vector<geometry::TriangleMesh>& obstacles, const std::vector<common::Box3>& cabinets,
+    HiddenPixels* hidden) {
+  std::vector<common::ImageU8> masks;
+  for (const auto& cam : cameras) {
+    const std::vector<double> covered = CoveringTriangleDepth(cam, obstacles);
+    common::ImageU8 mask(cam.width, cam.height);
+    for (const scene::Shape& object : objects) {
+      bool enclosed = false;
+      const common::Box3 bounds = scene::Bounds(object);
+      for (const common::Box3& cabinet : cabinets) {
+        enclosed = enclosed || ((bounds.min.array() > cabinet.min.array()).all() &&
+                                (bounds.max.array() < cabinet.max.array()).all() &&
+                                !cabinet.Contains(cam.CentreW()));
+      }
+      const double nearest = NearestDepth(cam, object);
+      const common::ImageU8 alone = scene::RenderExactMask(cam, {object});
+      for (int v = 0; v < cam.height; ++v) {
+        for (int u = 0; u < cam.width; ++u) {
+          if (alone.At(u, v) <= 127) continue;
+          if (enclosed) {
+            ++hidden->enclosed;
+          } else if (covered[static_cast<std::size_t>(v) * cam.width + u] < nearest - 1e-9) {
+            ++hidden->covered;
+          } else {
+            mask.At(u, v) = 255;
+          }
+        }
+      }
+    }
+    masks.push_back(std::move(mask));
+  }
+  return masks;
+}
+
+// A random tetrahedron (closed mesh) of radius 0.2 .. 0.4 m around `centre`.
+geometry::TriangleMesh RandomTetrahedron(const Eigen::Vector3d& centre, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  geometry::TriangleMesh mesh;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d dir = Eigen::Vector3d(normal(rng), normal(rng), normal(rng)).normalized();
+    mesh.vertices.push_back(centre + (0.2 + 0.2 * u01(rng)) * dir);
+  }
+  mesh.triangles = {{0, 1, 2}, {0, 3, 1}, {0, 2, 3}, {1, 3, 2}};
+  return mesh;
+}
+
+// Masks that hide objects behind obstacles, as real cameras see them: the
+// obstacle logic alone must then keep hidden object space from being freed.
+// Each scene holds random boxes and triangle soups, a closed box (a cabinet)
+// around one object, which no camera outside it sees, and a closed
+// tetrahedron between a camera and another object. Every point sampled inside
+// an object is not free; those that every camera sees only through obstacles
+// exist, and most of them come out occluded; the octree matches the dense
+// oracle on these masks; and without the obstacles the same masks would free
+// hidden object points (the masks do hide objects).
+TEST(OctreeOccludedMasksTest, ObjectsBehindObstaclesAreNeverFree) {
+  HiddenPixels hidden;
+  std::int64_t hidden_points = 0, hidden_occluded = 0, freed_naively = 0;
+  for (int seed = 0; seed < 20; ++seed) {
+    testing::RandomSceneOptions opt;
+    opt.num_cameras = 4 + seed % 3;
+    opt.num_objects = 3;
+    opt.num_obstacles = 2 + seed % 3;
+    RandomScene scene = testing::MakeRandomScene(7000 + seed, opt);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    const common::Box3 inner = scene::Bounds(scene.objects[0]);
+    const double margin = 0.02 + 0.1 * u01(rng);
+    const common::Box3 cabinet{inner.min.array() - margin, inner.max.array() + margin};
+    scene.obstacles.push_back(geometry::TriangleMesh::Box(cabinet.min, cabinet.max));
+    const geometry::CameraModel& shielded = scene.cameras[seed % opt.num_cameras];
+    const Eigen::Vector3d target = scene::Bounds(scene.objects[1]).Corner(0) * 0.5 +
+                                   scene::Bounds(scene.objects[1]).Corner(7) * 0.5;
+    scene.obstacles.push_back(RandomTetrahedron(
+        shielded.CentreW() + (0.4 + 0.3 * u01(rng)) * (target - shielded.CentreW()), rng));
+
+    const auto masks =
+        RenderOccludedMasks(scene.cameras, scene.objects, scene.obstacles, {cabinet}, &hidden);
+    SCOPED_TRACE(::testing::Message() << "seed " << seed);
+
+    // Points inside the objects (half at their surface), and whether some
+    // camera sees them unobstructed. The masks' precondition first: where an
+    // object point is visible, its pixel is foreground.
+    std::vector<Eigen::Vector3d> points;
+    std::vector<bool> seen;
+    for (const scene::Shape& object : scene.objects) {
+      for (int i = 0; i < 1000; ++i) {
+        const Eigen::Vector3d p = i % 2 == 0 ? scene::SampleInside(object, [&] { return u01(rng); })
+                                             : SampleNearSurface(object, rng);
+        bool visible = false;
+        for (std::size_t c = 0; c < scene.cameras.size(); ++c) {
+          const geometry::CameraModel& cam = scene.cameras[c];
+          if (!testing::VisibleFrom(cam, scene.obstacles, p)) continue;
+          visible = true;
+          const Eigen::Vector3d p_C = cam.ToCamera(p);
+          if (p_C.z() <= 0.0) continue;
+          const Eigen::Vector2d uv = cam.ProjectPinholeC(p_C);
+          const int u = geometry::PixelOf(uv.x()), v = geometry::PixelOf(uv.y());
+          if (u < 0 || v < 0 || u >= cam.width || v >= cam.height) continue;
+          ASSERT_GT(masks[c].At(u, v), 127)
+              << "mask of camera " << c << " misses visible point " << p.transpose();
+        }
+        points.push_back(p);
+        seen.push_back(visible);
+      }
+    }
+
+    const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+    Quadtrees qt(scene.cameras);
+    qt.Build(masks);
+    Octree exact({scene.bounds, 6, 1 + seed % 2, /*boundary_coarsening=*/0}, views);
+    exact.Update(qt.ptrs);
+    Octree coarse({scene.bounds, 6, 1 + seed % 2}, views);
+    coarse.Update(qt.ptrs);
+    Octree naive({scene.bounds, 6, 1, 0}, testing::MakeViews(scene.cameras, {}));
+    naive.Update(qt.ptrs);
+    const OracleInput oracle_input{scene.bounds, 6, scene.cameras, Pointers(masks),
+                                   DepthMaps(views)};
+    ExpectMatchesOracle(exact, oracle_input, oracle_input.Carve());
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const PointState s = exact.StateAt(points[i]);
+      ASSERT_NE(s, PointState::kFree)
+          << "object " << i / 1000 << " point " << points[i].transpose();
+      ASSERT_NE(coarse.StateAt(points[i]), PointState::kFree)
+          << "object " << i / 1000 << " point " << points[i].transpose() << " (coarse)";
+      if (seen[i]) continue;
+      ++hidden_points;
+      hidden_occluded += s == PointState::kOccluded;
+      freed_naively += naive.StateAt(points[i]) == PointState::kFree;
+    }
+  }
+  // The masks hide objects in both ways, and the hidden points are many.
+  EXPECT_GT(hidden.enclosed, 10000);
+  EXPECT_GT(hidden.covered, 2000);
+  EXPECT_GT(hidden_points, 5000);
+  EXPECT_GT(hidden_occluded, hidden_points / 2);
+  EXPECT_GT(freed_naively, 1000);
+}
+
 // Moving objects: the incremental octree equals a from-scratch build every
-// frame, leaf by leaf, and one thread equals several.
-TEST(OctreeSequenceTest, IncrementalEqualsFromScratchAndThreadsAgree) {
-  RandomScene scene = SequenceScene(77);
+// frame, leaf by leaf, and one thread equals several. The parameter picks the
+// scene (and, for the missed-versions test below, another one).
+class OctreeSequenceTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(OctreeSequenceTest, IncrementalEqualsFromScratchAndThreadsAgree) {
+  RandomScene scene = SequenceScene(77 + GetParam());
+  const int frames = GetParam() == 0 ? 50 : 24;
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   Quadtrees qt(scene.cameras);
   Octree incremental({scene.bounds, 7, 1}, views);
   Octree incremental_mt({scene.bounds, 7, 3}, views);
-  std::mt19937_64 rng(5);
+  std::mt19937_64 rng(5 + GetParam());
   const Eigen::Vector3d velocity(0.02, -0.015, 0.01);
-  for (int frame = 0; frame < 50; ++frame) {
+  for (int frame = 0; frame < frames; ++frame) {
     for (auto& obj : scene.objects) obj = scene::Translated(obj, velocity);
     const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
     qt.Build(masks);
@@ -217,8 +522,8 @@ TEST(OctreeSequenceTest, IncrementalEqualsFromScratchAndThreadsAgree) {
 // Quadtrees built several times between two updates (the octree missed
 // versions): the changes since the version it used are found, not everything
 // recomputed, and the result equals a from-scratch build.
-TEST(OctreeSequenceTest, MissedVersionsAreFoundAndNotRecomputedWhole) {
-  RandomScene scene = SequenceScene(91);
+TEST_P(OctreeSequenceTest, MissedVersionsAreFoundAndNotRecomputedWhole) {
+  RandomScene scene = SequenceScene(91 + GetParam());
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   Quadtrees qt(scene.cameras);
   Octree incremental({scene.bounds, 7, 2}, views);
@@ -243,23 +548,36 @@ TEST(OctreeSequenceTest, MissedVersionsAreFoundAndNotRecomputedWhole) {
     const UpdateStats whole = replaced.Update(fresh.ptrs);
     ASSERT_EQ(testing::Leaves(replaced), testing::Leaves(scratch)) << "frame " << frame;
     if (frame > 0) {
-      EXPECT_LT(inc.verdicts_computed, whole.verdicts_computed / 2) << frame;
+      // Less than half the work of a whole update in the first scene; in the
+      // others the moving object's share is larger (about 60% in scene 93 right
+      // after missed versions, whose changes are known by 8x8 tiles only), so
+      // there only less than all of it.
+      EXPECT_LT(inc.verdicts_computed,
+                GetParam() == 0 ? whole.verdicts_computed / 2 : whole.verdicts_computed)
+          << frame;
     }
   }
 }
 
+INSTANTIATE_TEST_SUITE_P(Seeds, OctreeSequenceTest, ::testing::Range(0, 3));
+
 // Aborting at random moments never frees anything the exact result keeps
 // occupied, and a completed update afterwards equals a from-scratch build.
-TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
+// Aborts come from the node budget (reproducible) and, in every third frame,
+// from a deadline a few hundred microseconds away (wherever the clock says).
+class OctreeAbortTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
+  const int k = GetParam();
   testing::RandomSceneOptions opt;
-  opt.num_cameras = 4;
+  opt.num_cameras = 4 + k % 2;
   opt.num_objects = 3;
-  opt.num_obstacles = 2;
-  RandomScene scene = testing::MakeRandomScene(31, opt);
+  opt.num_obstacles = 2 + k % 3;
+  RandomScene scene = testing::MakeRandomScene(31 + k, opt);
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   Quadtrees qt(scene.cameras);
-  Octree tree({scene.bounds, 6, 2}, views);
-  std::mt19937_64 rng(9);
+  Octree tree({scene.bounds, 6, 1 + (k + 1) % 3}, views);
+  std::mt19937_64 rng(9 + k);
   int aborted_frames = 0;
   for (int frame = 0; frame < 40; ++frame) {
     const Eigen::Vector3d step(0.03 * std::sin(frame * 0.3), 0.02, -0.01);
@@ -268,9 +586,14 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
     qt.Build(masks);
     UpdateControl control;
     const bool complete = frame % 7 == 6;
-    if (!complete) control.node_budget = static_cast<std::int64_t>(rng() % 1500);
+    const bool by_deadline = frame % 3 == 2;
+    if (!complete && by_deadline) {
+      control.deadline = std::chrono::steady_clock::now() + std::chrono::microseconds(rng() % 400);
+    } else if (!complete) {
+      control.node_budget = static_cast<std::int64_t>(rng() % 1500);
+    }
     const UpdateStats stats = tree.Update(qt.ptrs, control);
-    aborted_frames += stats.aborted;
+    aborted_frames += stats.aborted && !by_deadline;
 
     Octree exact({scene.bounds, 6, 1}, views);
     Quadtrees fresh(scene.cameras);
@@ -283,14 +606,83 @@ TEST(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
       ASSERT_EQ(testing::Leaves(tree), testing::Leaves(exact)) << "frame " << frame;
     }
   }
-  EXPECT_GT(aborted_frames, 20);
+  EXPECT_GT(aborted_frames, 15);  // Of 23 frames with a node budget.
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, OctreeAbortTest, ::testing::Range(0, 5));
+
+// Another thread raises UpdateControl::abort while an update runs (as a
+// watchdog would): the update stops, leaves nothing free that the dense oracle
+// does not certify, and the next complete update equals a from-scratch build.
+// Every trial hands the octree new quadtrees (new ids: every node must be
+// recomputed), so the update takes as long as a whole build, and the flag is
+// raised a different fraction of that time after the update was called.
+TEST(OctreeAbortFlagTest, RaisedByAnotherThreadMidUpdateStaysConservativeAndRecovers) {
+  testing::RandomSceneOptions opt;
+  opt.num_cameras = 6;
+  opt.num_objects = 4;
+  opt.num_obstacles = 3;
+  opt.width = 320;
+  opt.height = 240;
+  const RandomScene scene = testing::MakeRandomScene(4711, opt);
+  const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+  const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
+  constexpr int kDepth = 7;
+  const OctreeConfig config{scene.bounds, kDepth, 2};
+  Octree exact(config, views);
+  Quadtrees exact_qt(scene.cameras);
+  exact_qt.Build(masks);
+  const UpdateStats whole = exact.Update(exact_qt.ptrs);
+  const DenseGrid oracle =
+      testing::DenseCarve(scene.bounds, kDepth, scene.cameras, Pointers(masks), DepthMaps(views));
+  Octree tree(config, views);
+  std::mt19937_64 rng(21);
+  int aborted_midway = 0;
+  for (const double fraction : {0.0, 0.05, 0.15, 0.3, 0.5, 0.7}) {
+    Quadtrees qt(scene.cameras);
+    qt.Build(masks);
+    std::atomic<bool> abort{false};
+    std::atomic<bool> started{false};
+    const auto delay = std::chrono::duration<double, std::milli>(fraction * whole.update_ms);
+    std::thread raiser([&] {
+      while (!started.load(std::memory_order_acquire)) {
+      }
+      std::this_thread::sleep_for(delay);
+      abort.store(true, std::memory_order_relaxed);
+    });
+    UpdateControl control;
+    control.abort = &abort;
+    started.store(true, std::memory_order_release);
+    const UpdateStats stats = tree.Update(qt.ptrs, control);
+    raiser.join();
+    // Stopped after some verdicts, before all of them: the flag came mid-update.
+    aborted_midway += stats.aborted && stats.verdicts_computed > 0 &&
+                      stats.verdicts_computed < whole.verdicts_computed;
+
+    const DenseGrid got = testing::Rasterize(tree);
+    for (std::size_t i = 0; i < oracle.states.size(); ++i) {
+      if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
+        ASSERT_EQ(oracle.states[i], static_cast<std::uint8_t>(LeafState::kFree))
+            << "fraction " << fraction << " cell " << i;
+      }
+    }
+    ExpectObjectsNotFree(tree, scene.objects, rng, 300);
+    const UpdateStats done = tree.Update(qt.ptrs);
+    EXPECT_FALSE(done.aborted);
+    ASSERT_EQ(testing::Leaves(tree), testing::Leaves(exact)) << "fraction " << fraction;
+  }
+  EXPECT_GE(aborted_midway, 2);
 }
 
 // Coarse first: a completed update gives the same leaves as a plain one; an
 // update aborted after its coarse pass is conservative and certifies at least
 // what a tree of the coarse depth does, whatever was left unrefined.
-TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
-  RandomScene scene = SequenceScene(44);
+// The parameter picks the scene: the first for 40 frames, others for 20.
+class OctreeCoarseFirstAbortTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(OctreeCoarseFirstAbortTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
+  RandomScene scene = SequenceScene(44 + 2 * GetParam());  // 45 is the key-level test's.
+  const int frames = GetParam() == 0 ? 40 : 20;
   const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
   constexpr int kDepth = 8, kCoarse = 4;
   OctreeConfig config{scene.bounds, kDepth, 2};
@@ -298,10 +690,10 @@ TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
   Octree coarse_first(config, views);
   Octree plain({scene.bounds, kDepth, 2}, views);
   Quadtrees qt(scene.cameras);
-  std::mt19937_64 rng(12);
+  std::mt19937_64 rng(12 + GetParam());
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   int aborted_after_coarse = 0;
-  for (int frame = 0; frame < 40; ++frame) {
+  for (int frame = 0; frame < frames; ++frame) {
     // In two frames of every four the objects stand still: nothing changes in
     // the masks, and what an abort left unrefined must not come back as it was.
     const Eigen::Vector3d step(0.03 * std::cos(frame * 0.4), -0.02, 0.01);
@@ -348,8 +740,10 @@ TEST(OctreeCoarseFirstTest, SameLeavesWhenCompleteAndCoarseResultWhenAborted) {
     };
     EXPECT_LE(not_free(coarse_first), not_free(coarse) + 1e-9);
   }
-  EXPECT_GT(aborted_after_coarse, 10);
+  EXPECT_GT(aborted_after_coarse, frames / 4);
 }
+
+INSTANTIATE_TEST_SUITE_P(Seeds, OctreeCoarseFirstAbortTest, ::testing::Range(0, 3));
 
 // The key level is a pass of its own: some aborted updates end refined to
 // exactly it, which without it no update does (passes 3, 5, 7).
@@ -400,7 +794,8 @@ TEST(OctreeLostCameraTest, LosingACameraOnlyGrowsOccupiedSpace) {
   const DenseGrid after = testing::Rasterize(tree);
   std::vector<const common::ImageU8*> oracle_masks = Pointers(masks);
   oracle_masks[1] = nullptr;
-  ExpectMatchesOracle(after, testing::DenseCarve(scene.bounds, 6, scene.cameras, oracle_masks, {}));
+  const OracleInput lost_input{scene.bounds, 6, scene.cameras, oracle_masks, {}};
+  ExpectMatchesOracle(tree, lost_input, lost_input.Carve());
   std::size_t grown = 0;
   for (std::size_t i = 0; i < before.states.size(); ++i) {
     if (before.states[i] != static_cast<std::uint8_t>(LeafState::kFree)) {
