@@ -225,6 +225,12 @@ const Field<ThreadsConfig> kThreadsFields[] = {
                 "cameras' newest frames in turn; a camera whose frames come faster than they are "
                 "processed skips to its newest (counted as drops).",
      .limits = {0, 64}},
+    {.key = "realtime_priority",
+     .member = &ThreadsConfig::realtime_priority,
+     .meaning = "SCHED_FIFO priority of the fusion thread, so that other work cannot delay its "
+                "cycle; 0 keeps normal scheduling. The unit allows up to 20 (LimitRTPRIO); where "
+                "the system refuses it, the daemon logs a warning and runs unprioritised.",
+     .limits = {0, 99}},
 };
 
 /// The camera block, read by geometry::ParseCamera; listed here for the split
@@ -393,6 +399,14 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
      .meaning = "The foreground is grown by this many pixels, so that a person's pixel whose "
                 "colour matches the background is covered by its neighbours.",
      .limits = {0, 50}},
+    {.key = "keep_dir",
+     .member = &BackgroundConfig::keep_dir,
+     .meaning = "Folder (relative to the config file) where each camera's learned background is "
+                "kept across restarts, as background-<camera>.bin; empty: every start learns. A "
+                "camera whose file is there and fits takes it up instead of learning, so a person "
+                "in the cell when the daemon restarts stays foreground; one that learns writes its "
+                "file when learning ends. The cell must be empty when a camera learns. To learn "
+                "again, remove the files while the daemon is stopped."},
 };
 
 const Field<ObstacleConfig> kObstacleFields[] = {
@@ -1416,6 +1430,10 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);
   ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
   ReadSection<BlackBoxConfig>(r, sections, "blackbox", kBlackBoxFields, &config.blackbox);
+  if (!config.background.keep_dir.empty() && fs::path(config.background.keep_dir).is_relative()) {
+    config.background.keep_dir =
+        (r.base_dir() / config.background.keep_dir).lexically_normal().string();
+  }
   if (fs::path(config.blackbox.dir).is_relative()) {
     config.blackbox.dir = (r.base_dir() / config.blackbox.dir).lexically_normal().string();
   }

@@ -52,6 +52,7 @@ struct TimingConfig {
 struct ThreadsConfig {
   int octree = 2;              ///< Octree worker threads (the fusion thread included).
   int silhouette_workers = 0;  ///< 0 = one per camera.
+  int realtime_priority = 0;   ///< SCHED_FIFO priority of the fusion thread (0: normal).
 };
 
 /// Kind of camera source.
@@ -137,6 +138,8 @@ struct BackgroundConfig {
   int guard_px = 8;             ///< No adaptation this close to foreground.
   bool compensate_gain = true;  ///< Follow global light changes with one gain per frame.
   int dilate_px = 2;            ///< Foreground grown by this many pixels.
+  /// Folder keeping each camera's learned background across restarts ("": none).
+  std::string keep_dir;
 };
 
 /// A static obstacle mesh (OBJ or STL).

@@ -33,6 +33,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.align_to_frames = config.timing.align_to_frames;
   options.align_margin_ms = config.timing.align_margin_ms;
   options.silhouette_workers = config.threads.silhouette_workers;
+  options.fusion_realtime_priority = config.threads.realtime_priority;
   options.knowledge_filter_m3 = config.octree.knowledge_filter_m3;
   options.publish_depth = config.octree.publish_depth;
   options.max_speed_mps = config.motion.max_speed_mps;
@@ -46,6 +47,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.background.max_threshold = b.max_threshold;
   options.background.guard_px = b.guard_px;
   options.background.compensate_gain = b.compensate_gain;
+  options.background_dir = b.keep_dir;
   options.background_dilate_px = b.dilate_px;
   return options;
 }

@@ -161,10 +161,11 @@ int RunPipeline(const Config& config, double duration_s) {
 
   const auto start = std::chrono::steady_clock::now();
   const capture::SimClock sim_clock = capture::SimClock::Now();
-  std::vector<pipeline::PipelineCamera> cameras = MakeCameras(config, sim_clock);
-  // The black box's rings are allocated (and touched) before capture starts.
+  // The black box's rings are allocated (and touched) before capture starts,
+  // and before any camera is opened: what can fail here fails first.
   std::unique_ptr<pipeline::BlackBox> black_box;
   if (config.blackbox.seconds > 0.0) black_box = MakeBlackBox(config);
+  std::vector<pipeline::PipelineCamera> cameras = MakeCameras(config, sim_clock);
 
   pipeline::Pipeline::Consumer consumer;
   // Set before the pipeline starts, read by the fusion thread.

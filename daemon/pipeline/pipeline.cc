@@ -1,10 +1,14 @@
 #include "pipeline/pipeline.h"
 
+#include <pthread.h>
+#include <sched.h>
+
 #include <algorithm>
 #include <array>
 #include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <string>
 
 #include <opencv2/imgproc.hpp>
@@ -313,6 +317,17 @@ void Pipeline::FillCells(OccupancySnapshot* snapshot) {
 }
 
 void Pipeline::FusionLoop() {
+  if (options_.fusion_realtime_priority > 0) {
+    sched_param param{};
+    param.sched_priority = options_.fusion_realtime_priority;
+    const int error = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param);
+    if (error != 0) {
+      log::Warn("fusion thread: SCHED_FIFO priority {} refused ({}); running unprioritised",
+                options_.fusion_realtime_priority, std::strerror(error));
+    } else {
+      log::Info("fusion thread: SCHED_FIFO priority {}", options_.fusion_realtime_priority);
+    }
+  }
   const auto period = std::chrono::nanoseconds(static_cast<std::int64_t>(1e9 / options_.rate_hz));
   SteadyClock::time_point next = SteadyClock::now();
   SteadyClock::time_point last_second = next;

@@ -76,6 +76,9 @@ struct PipelineOptions {
   /// learns (no file, or one that does not fit) writes its file when learning
   /// ends. To learn again, remove the files while the daemon is stopped.
   std::string background_dir;
+  /// SCHED_FIFO priority of the fusion thread (0: normal scheduling). Where
+  /// the system refuses it, a warning is logged and the thread runs as is.
+  int fusion_realtime_priority = 0;
 };
 
 struct PipelineCamera {

@@ -638,38 +638,42 @@ TEST(OctreeAbortFlagTest, RaisedByAnotherThreadMidUpdateStaysConservativeAndReco
   Octree tree(config, views);
   std::mt19937_64 rng(21);
   int aborted_midway = 0;
-  for (const double fraction : {0.0, 0.05, 0.15, 0.3, 0.5, 0.7}) {
-    Quadtrees qt(scene.cameras);
-    qt.Build(masks);
-    std::atomic<bool> abort{false};
-    std::atomic<bool> started{false};
-    const auto delay = std::chrono::duration<double, std::milli>(fraction * whole.update_ms);
-    std::thread raiser([&] {
-      while (!started.load(std::memory_order_acquire)) {
-      }
-      std::this_thread::sleep_for(delay);
-      abort.store(true, std::memory_order_relaxed);
-    });
-    UpdateControl control;
-    control.abort = &abort;
-    started.store(true, std::memory_order_release);
-    const UpdateStats stats = tree.Update(qt.ptrs, control);
-    raiser.join();
-    // Stopped after some verdicts, before all of them: the flag came mid-update.
-    aborted_midway += stats.aborted && stats.verdicts_computed > 0 &&
-                      stats.verdicts_computed < whole.verdicts_computed;
+  // Where the flag lands depends on the scheduler: on a loaded machine the
+  // raiser may wake after the update ended. Rounds until two landed midway.
+  for (int round = 0; round < 10 && aborted_midway < 2; ++round) {
+    for (const double fraction : {0.0, 0.05, 0.15, 0.3, 0.5, 0.7}) {
+      Quadtrees qt(scene.cameras);
+      qt.Build(masks);
+      std::atomic<bool> abort{false};
+      std::atomic<bool> started{false};
+      const auto delay = std::chrono::duration<double, std::milli>(fraction * whole.update_ms);
+      std::thread raiser([&] {
+        while (!started.load(std::memory_order_acquire)) {
+        }
+        std::this_thread::sleep_for(delay);
+        abort.store(true, std::memory_order_relaxed);
+      });
+      UpdateControl control;
+      control.abort = &abort;
+      started.store(true, std::memory_order_release);
+      const UpdateStats stats = tree.Update(qt.ptrs, control);
+      raiser.join();
+      // Stopped after some verdicts, before all of them: the flag came mid-update.
+      aborted_midway += stats.aborted && stats.verdicts_computed > 0 &&
+                        stats.verdicts_computed < whole.verdicts_computed;
 
-    const DenseGrid got = testing::Rasterize(tree);
-    for (std::size_t i = 0; i < oracle.states.size(); ++i) {
-      if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
-        ASSERT_EQ(oracle.states[i], static_cast<std::uint8_t>(LeafState::kFree))
-            << "fraction " << fraction << " cell " << i;
+      const DenseGrid got = testing::Rasterize(tree);
+      for (std::size_t i = 0; i < oracle.states.size(); ++i) {
+        if (got.states[i] == static_cast<std::uint8_t>(LeafState::kFree)) {
+          ASSERT_EQ(oracle.states[i], static_cast<std::uint8_t>(LeafState::kFree))
+              << "fraction " << fraction << " cell " << i;
+        }
       }
+      ExpectObjectsNotFree(tree, scene.objects, rng, 300);
+      const UpdateStats done = tree.Update(qt.ptrs);
+      EXPECT_FALSE(done.aborted);
+      ASSERT_EQ(testing::Leaves(tree), testing::Leaves(exact)) << "fraction " << fraction;
     }
-    ExpectObjectsNotFree(tree, scene.objects, rng, 300);
-    const UpdateStats done = tree.Update(qt.ptrs);
-    EXPECT_FALSE(done.aborted);
-    ASSERT_EQ(testing::Leaves(tree), testing::Leaves(exact)) << "fraction " << fraction;
   }
   EXPECT_GE(aborted_midway, 2);
 }
