@@ -4,13 +4,14 @@
 # docs/images/paper_cell_scaling.png, and the raw results docs/benchmarks.json
 # (Google Benchmark) and docs/bench_paper_cell.json (`hullguard bench`).
 #   tools/perf/run_benchmarks.sh [BUILD_DIR]      (default: build)
-# Environment: HG_BENCH_FRAMES (frames per `hullguard bench` run, default 30).
+# Environment: HG_BENCH_FRAMES (frames per `hullguard bench` run, default 300, so
+# that the p99 of the incremental updates is not simply their maximum).
 # Needs python3 and gnuplot. Takes 10-20 minutes on two cores: the depth-10 runs
 # update millions of nodes per frame.
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)
 build=${1:-$root/build}
-frames=${HG_BENCH_FRAMES:-30}
+frames=${HG_BENCH_FRAMES:-300}
 json=$root/docs/benchmarks.json
 "$build/tests/hg_bench" --benchmark_out="$json" --benchmark_out_format=json
 
