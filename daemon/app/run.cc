@@ -10,6 +10,7 @@
 
 #include "app/pipeline_setup.h"
 #include "app/service.h"
+#include "app/snapshot_stage.h"
 #include "app/tracking_stage.h"
 #include "capture/sim_source.h"
 #include "common/config_error.h"
@@ -171,16 +172,23 @@ int RunPipeline(const Config& config, double duration_s) {
   // Set before the pipeline starts, read by the fusion thread.
   std::unique_ptr<TrackingStage> tracking;
   TrackingStage::Consumer on_tracks;
+  common::Heartbeats heartbeats;
+  // Publishing runs on a thread of its own (the fusion thread only offers
+  // each snapshot, a shared-pointer copy), tracks on the tracking thread:
+  // the fusion cycle never waits on the network.
+  std::unique_ptr<SnapshotStage> publish_stage;
 #ifdef HG_WITH_DDS
-  // Publish never blocks or throws; it runs on the fusion thread after each
-  // cycle, PublishTracks on the tracking thread.
   publish::DdsPublisher publisher(
       {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled, config.tracking.enabled},
       config.timing.rate_hz);
   if (config.dds.enabled) {
-    consumer = [&publisher](const std::shared_ptr<const pipeline::OccupancySnapshot>& s) {
-      publisher.Publish(*s);
-    };
+    publish_stage = std::make_unique<SnapshotStage>(
+        "publish", [&publisher](const pipeline::OccupancySnapshot& s) { publisher.Publish(s); },
+        &heartbeats);
+    consumer =
+        [stage = publish_stage.get()](const std::shared_ptr<const pipeline::OccupancySnapshot>& s) {
+          stage->Offer(s);
+        };
     on_tracks = [&publisher](const TrackedCycle& c) {
       publisher.PublishTracks(c.sequence, c.stamp_ns, c.degraded, c.tracks);
     };
@@ -190,7 +198,6 @@ int RunPipeline(const Config& config, double duration_s) {
     log::Warn("built without Cyclone DDS: nothing is published");
   }
 #endif
-  common::Heartbeats heartbeats;
   if (config.tracking.enabled) {
     // Static voxel states from the cameras and obstacles, once, before READY=1.
     const auto build_start = std::chrono::steady_clock::now();
@@ -220,6 +227,7 @@ int RunPipeline(const Config& config, double duration_s) {
   // Also without a black box: SIGUSR1's default action would end the daemon.
   std::signal(SIGUSR1, OnDumpSignal);
   if (tracking) tracking->Start();
+  if (publish_stage) publish_stage->Start();
   pipeline.Start();
   watchdog.Start();
   log::Info("running {}", Summary(config));
@@ -292,6 +300,7 @@ int RunPipeline(const Config& config, double duration_s) {
   notifier.Stopping();
   watchdog.Stop();
   pipeline.Stop();
+  if (publish_stage) publish_stage->Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
     LogHealth(*s, HealthLine(*s, tracking.get()));
