@@ -440,6 +440,65 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   fs::remove_all(dir);
 }
 
+// Two people stand motionless for a minute of simulated time, in colour
+// frames through the background model, while the light breathes by +-15 %:
+// the background model never absorbs them, so no point inside them is ever
+// published free, while the rest of the cell stays certified free.
+TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
+  std::shared_ptr<sim::Scene> scene = StandingScene();
+  scene->imaging.light_change_amplitude = 0.15;
+  scene->imaging.light_change_period_s = 20.0;
+  sim::Scene empty = *scene;
+  empty.people.clear();
+  std::vector<sim::BodyState> people;
+  for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
+  std::vector<sim::ColourRenderer> with_people, without;
+  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+    with_people.emplace_back(*scene, c);
+    without.emplace_back(empty, c);
+  }
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 6;
+  options.publish_depth = 6;
+  options.background.learn_frames = 20;
+  std::vector<PipelineCamera> cameras;
+  for (const sim::SceneCamera& c : scene->cameras) cameras.push_back({c.model, nullptr, 150});
+  Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+  constexpr int kLearn = 30, kStill = 60 * 30;  // Frames at 30 Hz.
+  const auto points = testing::PointsInPeople(*scene, 0.0, 300, 9);
+  capture::Frame frame;
+  frame.kind = capture::FrameKind::kRgb;
+  int checked = 0, free = 0;
+  std::size_t most_listed = 0, first_listed = 0;
+  for (int i = 0; i < kLearn + kStill; ++i) {
+    const bool present = i >= kLearn;
+    frame.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
+    for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+      (present ? with_people : without)[c].Render(present ? people : std::vector<sim::BodyState>{},
+                                                  i / 30.0, static_cast<std::uint64_t>(i),
+                                                  &frame.rgb);
+      pipeline.Feed(c, frame);
+    }
+    const auto s = pipeline.Step(frame.stamp_ns);
+    if (present && (i - kLearn) % 10 == 0) {
+      free += testing::PointsInUnlistedCells(points, s->bounds.min, s->bounds.max, s->depth,
+                                             {&s->occupied, &s->occluded});
+      const std::size_t listed =
+          OccupancySnapshot::Cells(s->occupied) + OccupancySnapshot::Cells(s->occluded);
+      if (checked == 0) first_listed = listed;
+      most_listed = std::max(most_listed, listed);
+      ++checked;
+    }
+  }
+  EXPECT_EQ(checked, kStill / 10);
+  EXPECT_EQ(free, 0) << "points inside a person still for a minute were published free";
+  // Not merely all occupied: the rest of the cell stayed certified free
+  // throughout (what the cameras cannot see is listed too, about a third).
+  EXPECT_LT(most_listed, (std::size_t{1} << (3 * options.publish_depth)) / 2);
+  EXPECT_LT(most_listed, first_listed + first_listed / 10) << first_listed;
+}
+
 TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
   namespace fs = std::filesystem;
   const std::shared_ptr<sim::Scene> scene = StandingScene();
