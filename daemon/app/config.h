@@ -81,6 +81,8 @@ struct SimSourceConfig {
   /// Fault injection for demos and tests: the camera stops delivering frames
   /// this many seconds after start, as a camera whose cable is pulled.
   std::optional<double> stop_after_s;
+  /// Colour frames through the background model instead of masks (SimSource::EnableColour).
+  bool colour = false;
 };
 
 /// Frames played back from a recording.

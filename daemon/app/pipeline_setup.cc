@@ -107,6 +107,11 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
       auto source =
           std::make_unique<capture::SimSource>(scene, scene_camera[i], scene->rate_hz, clock);
       if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
+      if (sim_source->colour) {
+        // Twice the learning frames: a camera that drops frames still learns
+        // the cell empty.
+        source->EnableColour(2.0 * config.background.learn_frames / scene->rate_hz + 1.0);
+      }
       cameras.push_back({c.model, std::move(source), c.timeout_ms});
       continue;
     }

@@ -45,6 +45,18 @@ class SimSource : public CameraSource {
   /// time (set before the capture thread starts).
   void SetStopAfter(double seconds) { stop_after_ = std::chrono::duration<double>(seconds); }
 
+  /// Colour frames instead of masks, so that the silhouette pipeline runs its
+  /// background model on them (call before the capture thread starts). Made
+  /// cheaply enough for 8 Full HD cameras at 30 Hz: the empty cell is rendered
+  /// once (sim::ColourRenderer, noise-free), and each frame is a copy of it in
+  /// which the people's pixels (the ground-truth mask) are painted 100 grey
+  /// levels off the background in every channel, plus sensor noise from a
+  /// precomputed table. No light changes, no shadows: for the pipeline's load
+  /// and conservativeness, not for the background model's realism (which
+  /// `hullguard synth --colour` recordings test). People are left out for the
+  /// first `empty_s` seconds: the cell is empty while the model learns it.
+  void EnableColour(double empty_s);
+
  private:
   std::shared_ptr<const sim::Scene> scene_;
   int camera_index_;
@@ -57,6 +69,13 @@ class SimSource : public CameraSource {
   std::atomic<bool> stopped_{false};
   std::atomic<bool> paused_{false};
   std::chrono::duration<double> stop_after_{std::chrono::duration<double>::max()};
+  // Colour mode (EnableColour): the empty cell, the noise table, scratch.
+  bool colour_ = false;
+  double empty_s_ = 0.0;
+  common::ImageRgb8 empty_;
+  common::ImageRgb8 painted_;  // The empty cell 100 grey levels off: the people's colour.
+  std::vector<std::int8_t> noise_;
+  common::ImageU8 mask_;
 };
 
 }  // namespace hg::capture

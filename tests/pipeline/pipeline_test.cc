@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -497,6 +498,67 @@ TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
   // throughout (what the cameras cannot see is listed too, about a third).
   EXPECT_LT(most_listed, (std::size_t{1} << (3 * options.publish_depth)) / 2);
   EXPECT_LT(most_listed, first_listed + first_listed / 10) << first_listed;
+}
+
+// The sim source's colour mode: the empty cell (plus noise) while the model
+// learns, then the people painted in, which the background model finds: no
+// point inside them is published free, and the rest of the cell is.
+TEST(PipelineTest, SimColourFramesGoThroughTheBackgroundModel) {
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  const capture::SimClock clock = capture::SimClock::Now();
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 6;
+  options.publish_depth = 6;
+  options.background.learn_frames = 10;
+  constexpr double kEmptyS = 1.0;
+  std::vector<PipelineCamera> cameras;
+  std::vector<capture::SimSource*> sources;
+  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+    auto source = std::make_unique<capture::SimSource>(scene, c, 30.0, clock);
+    source->EnableColour(kEmptyS);
+    sources.push_back(source.get());
+    cameras.push_back({scene->cameras[c].model, std::move(source), 150});
+  }
+  // What a camera delivers: colour, the empty cell within the noise at first.
+  {
+    capture::SimSource probe(scene, 0, 30.0, clock);
+    probe.EnableColour(kEmptyS);
+    capture::Frame frame;
+    ASSERT_TRUE(probe.Next(&frame, 500ms));
+    ASSERT_EQ(frame.kind, capture::FrameKind::kRgb);
+    common::ImageRgb8 empty;
+    sim::ColourRenderer(*scene, 0).RenderEmpty(&empty);
+    ASSERT_EQ(frame.rgb.pixels.size(), empty.pixels.size());
+    int largest = 0;
+    for (std::size_t i = 0; i < empty.pixels.size(); ++i) {
+      largest = std::max(largest, std::abs(frame.rgb.pixels[i] - empty.pixels[i]));
+    }
+    EXPECT_LT(largest, 20) << "people or more than noise in the learning frames";
+  }
+  Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+  pipeline.Start();
+  const std::int64_t people_from =
+      clock.epoch_ns + static_cast<std::int64_t>((kEmptyS + 0.2) * 1e9);
+  int checked = 0, free = 0;
+  std::uint64_t seen = 0;
+  const auto give_up = std::chrono::steady_clock::now() + 10s;
+  while (std::chrono::steady_clock::now() < give_up && checked < 10) {
+    const auto s = pipeline.Latest();
+    if (s && s->sequence != seen && s->stamp_ns > people_from && !s->health.degraded) {
+      seen = s->sequence;
+      free += testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 100, seen),
+                                             s->bounds.min, s->bounds.max, s->depth,
+                                             {&s->occupied, &s->occluded});
+      EXPECT_LT(OccupancySnapshot::Cells(s->occupied) + OccupancySnapshot::Cells(s->occluded),
+                (std::size_t{1} << (3 * options.publish_depth)) / 2);
+      ++checked;
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  pipeline.Stop();
+  EXPECT_EQ(checked, 10) << "too few healthy cycles with the people in";
+  EXPECT_EQ(free, 0);
 }
 
 TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
