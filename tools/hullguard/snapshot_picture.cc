@@ -262,11 +262,13 @@ void WriteSnapshotPicture(const std::vector<SnapshotBox>& input, const common::B
               cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1);
   cv::putText(img, "perspective", cv::Point(3 * margin + 2 * top_w, margin + 18),
               cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1);
-  cv::putText(img,
-              "red to orange: occupied (by height), grey: occluded (top view: below 2 m), green: "
-              "obstacles, blue: cameras" +
-                  std::string(tracks.empty() ? ". " : ", magenta: tracks (#id). ") + caption,
-              cv::Point(margin, img.rows - 14), cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1);
+  // The legend names only what this picture draws.
+  std::string legend = "red to orange: occupied (by height), grey: occluded (top view: below 2 m)";
+  if (!obstacles.empty()) legend += ", green: obstacles";
+  if (!cameras.empty()) legend += ", blue: cameras";
+  legend += tracks.empty() ? ". " : ", magenta: tracks (#id). ";
+  cv::putText(img, legend + caption, cv::Point(margin, img.rows - 14), cv::FONT_HERSHEY_SIMPLEX,
+              0.5, black, 1);
   bool ok = false;
   try {
     ok = cv::imwrite(path, img);
