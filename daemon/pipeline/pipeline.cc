@@ -11,8 +11,6 @@
 #include <cstring>
 #include <string>
 
-#include <opencv2/imgproc.hpp>
-
 #include "common/log.h"
 #include "octree/camera_view.h"
 #include "pipeline/black_box.h"
@@ -210,11 +208,8 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
         log::Warn("{}: background learned, not saved: {}", c.model.name, error);
       }
     }
-    if (options_.background_dilate_px > 0) {
-      // The default 3x3 square, applied dilate_px times: a (2 r + 1)^2 square.
-      cv::Mat m(c.foreground.height, c.foreground.width, CV_8UC1, c.foreground.pixels.data());
-      cv::dilate(m, m, cv::Mat(), cv::Point(-1, -1), options_.background_dilate_px);
-    }
+    // A (2 r + 1)^2 square, without allocating once the scratch has grown.
+    silhouette::DilateSquare(&c.foreground, options_.background_dilate_px, &c.dilate_scratch);
     mask = &c.foreground;
   }
   if (mask->width != c.model.width || mask->height != c.model.height) {

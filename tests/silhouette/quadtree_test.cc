@@ -123,7 +123,9 @@ TEST(QuadtreeTest, ChangedSinceFindsEveryTileChangedAfterTheVersion) {
         ASSERT_EQ(tree.ChangedSince(r, since), expect)
             << w << "x" << h << " build " << build << " since " << since << " rect " << r.u0 << ","
             << r.v0 << " " << r.u1 << "," << r.v1;
-        if (tree.AnyChanged(r)) ASSERT_TRUE(tree.ChangedSince(r, tree.version() - 1));
+        if (tree.AnyChanged(r)) {
+          ASSERT_TRUE(tree.ChangedSince(r, tree.version() - 1));
+        }
       }
     }
     EXPECT_FALSE(tree.ChangedSince({0, 0, w - 1, h - 1}, tree.version()));

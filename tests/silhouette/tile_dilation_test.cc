@@ -8,6 +8,7 @@
 #include <random>
 
 #include <Eigen/Geometry>
+#include <opencv2/imgproc.hpp>
 
 namespace hg::silhouette {
 namespace {
@@ -39,6 +40,34 @@ std::vector<int> DistanceToForeground(const common::ImageU8& mask) {
     }
   }
   return d;
+}
+
+// Pixel-exact against OpenCV's dilation (the 3x3 square applied r times) on
+// random sparse masks of odd sizes, foreground at the borders included.
+TEST(DilateSquare, EqualsOpenCvsIteratedSquareDilation) {
+  std::mt19937 rng(17);
+  std::vector<std::uint8_t> scratch;
+  for (int trial = 0; trial < 40; ++trial) {
+    const int w = 1 + static_cast<int>(rng() % 97), h = 1 + static_cast<int>(rng() % 61);
+    const int r = static_cast<int>(rng() % 5);
+    common::ImageU8 mask(w, h, 0);
+    for (std::uint8_t& p : mask.pixels)
+      p = rng() % 23 == 0 ? static_cast<std::uint8_t>(1 + rng() % 255) : 0;
+    cv::Mat expected(h, w, CV_8UC1);
+    for (int v = 0; v < h; ++v) {
+      for (int u = 0; u < w; ++u) expected.at<std::uint8_t>(v, u) = mask.At(u, v) != 0 ? 255 : 0;
+    }
+    if (r > 0) cv::dilate(expected, expected, cv::Mat(), cv::Point(-1, -1), r);
+    DilateSquare(&mask, r, &scratch);
+    for (int v = 0; v < h; ++v) {
+      for (int u = 0; u < w; ++u) {
+        // r = 0 leaves the mask as it was (non-zero, not 255).
+        const int got = r == 0 ? (mask.At(u, v) != 0 ? 255 : 0) : mask.At(u, v);
+        ASSERT_EQ(got, expected.at<std::uint8_t>(v, u))
+            << "trial " << trial << " (" << u << ", " << v << ") r " << r;
+      }
+    }
+  }
 }
 
 TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
