@@ -15,27 +15,27 @@ void DilateSquare(common::ImageU8* mask, int radius_px, std::vector<std::uint8_t
   const auto pixels = static_cast<std::size_t>(w) * h;
   if (scratch->size() < pixels) scratch->resize(pixels);
   std::uint8_t* rows = scratch->data();
-  // Horizontal: each pixel the largest of its row's [u - r, u + r].
+  // Horizontal: each pixel the OR of its row's [u - r, u + r], the foreground
+  // made 255 first.
   for (int v = 0; v < h; ++v) {
-    const std::uint8_t* in = mask->pixels.data() + static_cast<std::size_t>(v) * w;
-    std::uint8_t* out = rows + static_cast<std::size_t>(v) * w;
-    for (int u = 0; u < w; ++u) out[u] = in[u];
+    const std::uint8_t* __restrict in = mask->pixels.data() + static_cast<std::size_t>(v) * w;
+    std::uint8_t* __restrict out = rows + static_cast<std::size_t>(v) * w;
+    for (int u = 0; u < w; ++u) out[u] = in[u] != 0 ? 255 : 0;
     for (int d = 1; d <= r; ++d) {
-      for (int u = 0; u + d < w; ++u) out[u] = std::max(out[u], in[u + d]);
-      for (int u = d; u < w; ++u) out[u] = std::max(out[u], in[u - d]);
+      for (int u = 0; u + d < w; ++u) out[u] |= in[u + d] != 0 ? 255 : 0;
+      for (int u = d; u < w; ++u) out[u] |= in[u - d] != 0 ? 255 : 0;
     }
   }
-  // Vertical: each pixel the largest of its column's [v - r, v + r].
+  // Vertical: each pixel the OR of its column's [v - r, v + r].
   for (int v = 0; v < h; ++v) {
-    std::uint8_t* out = mask->pixels.data() + static_cast<std::size_t>(v) * w;
+    std::uint8_t* __restrict out = mask->pixels.data() + static_cast<std::size_t>(v) * w;
     const int lo = std::max(0, v - r), hi = std::min(h - 1, v + r);
-    const std::uint8_t* first = rows + static_cast<std::size_t>(lo) * w;
+    const std::uint8_t* __restrict first = rows + static_cast<std::size_t>(lo) * w;
     for (int u = 0; u < w; ++u) out[u] = first[u];
     for (int k = lo + 1; k <= hi; ++k) {
-      const std::uint8_t* row = rows + static_cast<std::size_t>(k) * w;
-      for (int u = 0; u < w; ++u) out[u] = std::max(out[u], row[u]);
+      const std::uint8_t* __restrict row = rows + static_cast<std::size_t>(k) * w;
+      for (int u = 0; u < w; ++u) out[u] |= row[u];
     }
-    for (int u = 0; u < w; ++u) out[u] = out[u] != 0 ? 255 : 0;
   }
 }
 
