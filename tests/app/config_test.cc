@@ -32,7 +32,7 @@ const char* const kFull = R"(cell:
   bounds: {min: [-1, -2, 0], max: [3, 4, 2.5]}
 octree: {depth: 8, boundary_coarsening: 2, knowledge_filter_m3: 0.002, publish_depth: 6}
 timing: {rate_hz: 20, deadline_ms: 40, camera_timeout_ms: 150, align_to_frames: false, align_margin_ms: 3}
-threads: {octree: 4, silhouette_workers: 3}
+threads: {octree: 4, silhouette_workers: 3, realtime_priority: 12}
 cameras:
   - name: cam0
     width: 1920
@@ -71,7 +71,7 @@ cameras:
     position: [4, 4, 2]
     look_at: [2, 2, 1]
     source: {type: v4l2, device: /dev/video2, format: MJPEG, frame_rate_hz: 15, exposure: 120}
-background: {learn_frames: 50, threshold: 30, adapt_rate: 0.05, shadows_are_foreground: false, max_threshold: 40}
+background: {learn_frames: 50, threshold: 30, adapt_rate: 0.05, shadows_are_foreground: false, max_threshold: 40, keep_dir: state/bg}
 obstacles:
   - file: demo_cell/obstacles.obj
 dds: {domain_id: 7, topic_prefix: cell7, enabled: false}
@@ -179,10 +179,16 @@ TEST(ConfigTest, EverySectionReadsBack) {
   EXPECT_EQ(MakePipelineOptions(c).align_margin_ms, 3.0);
   EXPECT_EQ(c.threads.octree, 4);
   EXPECT_EQ(c.threads.silhouette_workers, 3);
+  EXPECT_EQ(c.threads.realtime_priority, 12);
+  EXPECT_EQ(MakePipelineOptions(c).fusion_realtime_priority, 12);
   EXPECT_EQ(c.background.learn_frames, 50);
   EXPECT_EQ(c.background.threshold, 30);
   EXPECT_EQ(c.background.adapt_rate, 0.05);
   EXPECT_FALSE(c.background.shadows_are_foreground);
+  // Relative to the config's folder; the pipeline keeps the backgrounds there.
+  EXPECT_EQ(c.background.keep_dir, kConfigDir + "/state/bg");
+  EXPECT_EQ(MakePipelineOptions(c).background_dir, kConfigDir + "/state/bg");
+  EXPECT_EQ(Parse(kMinimal).background.keep_dir, "");
   ASSERT_EQ(c.obstacles.size(), 1u);
   EXPECT_EQ(c.obstacles[0].file, kConfigDir + "/demo_cell/obstacles.obj");
   EXPECT_EQ(c.dds.domain_id, 7);
