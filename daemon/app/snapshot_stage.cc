@@ -1,5 +1,9 @@
 #include "app/snapshot_stage.h"
 
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
 #include <ctime>
 #include <utility>
 
@@ -13,8 +17,9 @@ constexpr long kWaitNs = 100'000'000L;
 
 }  // namespace
 
-SnapshotStage::SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats)
-    : consumer_(std::move(consumer)), heartbeats_(heartbeats) {
+SnapshotStage::SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats,
+                             int nice)
+    : consumer_(std::move(consumer)), heartbeats_(heartbeats), nice_(nice) {
   HG_CHECK(sem_init(&offered_, 0, 0) == 0);
   if (heartbeats_ != nullptr) heartbeat_ = heartbeats_->Register(name);
 }
@@ -45,6 +50,8 @@ void SnapshotStage::Offer(const std::shared_ptr<const pipeline::OccupancySnapsho
 }
 
 void SnapshotStage::Loop() {
+  // Per thread on Linux; raising one's own niceness needs no privilege.
+  if (nice_ > 0) (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), nice_);
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeat_ >= 0) heartbeats_->Beat(heartbeat_);
     timespec until{};

@@ -31,7 +31,9 @@ class SnapshotStage {
   using Consumer = std::function<void(const pipeline::OccupancySnapshot&)>;
 
   /// `heartbeats` may be null; otherwise the stage registers itself as `name`.
-  SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats);
+  /// `nice` > 0 lowers the thread's priority (setpriority, no privilege needed;
+  /// on failure it keeps the default).
+  SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats, int nice = 0);
   ~SnapshotStage();
   SnapshotStage(const SnapshotStage&) = delete;
   SnapshotStage& operator=(const SnapshotStage&) = delete;
@@ -54,6 +56,7 @@ class SnapshotStage {
 
   Consumer consumer_;
   common::Heartbeats* heartbeats_;
+  int nice_;
   int heartbeat_ = -1;
   common::LatestValue<std::shared_ptr<const pipeline::OccupancySnapshot>> slot_;
   sem_t offered_;  // Posted per Offer; the thread waits on it with a timeout.

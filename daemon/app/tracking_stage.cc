@@ -1,22 +1,13 @@
 #include "app/tracking_stage.h"
 
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-
 #include <chrono>
-#include <ctime>
 #include <utility>
 
-#include "common/check.h"
 
 namespace hg::app {
 namespace {
 
 using SteadyClock = std::chrono::steady_clock;
-
-/// Longest wait for a snapshot: the thread beats its heartbeat at least this often.
-constexpr long kWaitNs = 100'000'000;
 
 void AtomicMax(std::atomic<double>* target, double value) {
   double seen = target->load(std::memory_order_relaxed);
@@ -71,34 +62,20 @@ tracking::StaticScene MakeStaticScene(const Config& config,
 TrackingStage::TrackingStage(const tracking::TrackerOptions& options, const common::Box3& bounds,
                              const tracking::StaticScene& scene, Consumer consumer,
                              common::Heartbeats* heartbeats)
-    : tracker_(options, bounds, scene), consumer_(std::move(consumer)), heartbeats_(heartbeats) {
-  HG_CHECK(sem_init(&offered_, 0, 0) == 0);
-  if (heartbeats_ != nullptr) heartbeat_ = heartbeats_->Register("tracking");
-}
+    : tracker_(options, bounds, scene),
+      consumer_(std::move(consumer)),
+      stage_(
+          "tracking", [this](const pipeline::OccupancySnapshot& s) { RunOnce(s); }, heartbeats,
+          kTrackingNice) {}
 
-TrackingStage::~TrackingStage() {
-  Stop();
-  sem_destroy(&offered_);
-}
+TrackingStage::~TrackingStage() { Stop(); }
 
-void TrackingStage::Start() {
-  HG_CHECK(!thread_.joinable());
-  stop_.store(false);
-  thread_ = std::thread([this] { Loop(); });
-}
+void TrackingStage::Start() { stage_.Start(); }
 
-void TrackingStage::Stop() {
-  stop_.store(true);
-  if (thread_.joinable()) {
-    sem_post(&offered_);  // Wakes the thread at once.
-    thread_.join();
-  }
-}
+void TrackingStage::Stop() { stage_.Stop(); }
 
 void TrackingStage::Offer(const std::shared_ptr<const pipeline::OccupancySnapshot>& snapshot) {
-  slot_.BeginWrite() = snapshot;  // A reference count, no allocation.
-  slot_.Publish();
-  sem_post(&offered_);  // Lock-free; a futex wake only when the thread waits.
+  stage_.Offer(snapshot);
 }
 
 bool TrackingStage::RunOnce(const pipeline::OccupancySnapshot& snapshot) {
@@ -121,34 +98,10 @@ bool TrackingStage::RunOnce(const pipeline::OccupancySnapshot& snapshot) {
   return true;
 }
 
-void TrackingStage::Loop() {
-  // Per thread on Linux; raising one's own niceness needs no privilege. On
-  // failure the thread just keeps the default priority.
-  (void)setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), kTrackingNice);
-  while (!stop_.load(std::memory_order_relaxed)) {
-    if (heartbeat_ >= 0) heartbeats_->Beat(heartbeat_);
-    timespec until{};
-    clock_gettime(CLOCK_MONOTONIC, &until);
-    until.tv_nsec += kWaitNs;
-    if (until.tv_nsec >= 1'000'000'000L) {
-      until.tv_nsec -= 1'000'000'000L;
-      ++until.tv_sec;
-    }
-    if (sem_clockwait(&offered_, CLOCK_MONOTONIC, &until) != 0) continue;  // Timeout or signal.
-    while (sem_trywait(&offered_) == 0) {
-    }  // One cycle on the newest snapshot for every post so far.
-    if (stop_.load(std::memory_order_relaxed)) break;
-    std::shared_ptr<const pipeline::OccupancySnapshot>* newest = slot_.TakeNewest();
-    if (newest == nullptr || !*newest) continue;
-    RunOnce(**newest);
-    newest->reset();  // The pipeline may reuse the snapshot from now on.
-  }
-}
-
 TrackingStats TrackingStage::stats() const {
   TrackingStats s;
   s.cycles = cycles_.load(std::memory_order_relaxed);
-  s.skipped = slot_.drops();
+  s.skipped = stage_.skipped();
   s.untracked = untracked_.load(std::memory_order_relaxed);
   s.tracks = tracks_.load(std::memory_order_relaxed);
   s.last_ms = last_ms_.load(std::memory_order_relaxed);

@@ -4,19 +4,16 @@
 /// snapshot, away from the fusion thread, and hands each tracked cycle to a
 /// consumer (the DDS publisher).
 
-#include <semaphore.h>
-
 #include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
 #include <span>
-#include <thread>
 
 #include "app/config.h"
+#include "app/snapshot_stage.h"
 #include "common/box.h"
 #include "common/heartbeat.h"
-#include "common/latest_value.h"
 #include "pipeline/snapshot.h"
 #include "tracking/static_scene.h"
 #include "tracking/tracker.h"
@@ -113,16 +110,9 @@ class TrackingStage {
   [[nodiscard]] const tracking::Tracker& tracker() const { return tracker_; }
 
  private:
-  void Loop();
-
   tracking::Tracker tracker_;
   Consumer consumer_;
-  common::Heartbeats* heartbeats_ = nullptr;
-  int heartbeat_ = -1;
-  common::LatestValue<std::shared_ptr<const pipeline::OccupancySnapshot>> slot_;
-  sem_t offered_;  // Posted per Offer; the thread waits on it with a timeout.
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
+  SnapshotStage stage_;  // The thread, the handoff and the heartbeat ("tracking").
   std::atomic<std::uint64_t> cycles_{0};
   std::atomic<std::uint64_t> untracked_{0};
   std::atomic<int> tracks_{0};
