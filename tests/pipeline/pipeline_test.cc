@@ -360,6 +360,39 @@ TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
 // The colour path: a recording of colour frames (the empty cell first, then
 // two people standing) replayed through the background model. Once the model
 // has learned the empty cell, every point of the people is occupied.
+// Colour frames of a scene whose people stand still in their pose at t = 0,
+// with them or without them (the empty cell), for lock-step Feed() and Step().
+class StillColourFrames {
+ public:
+  explicit StillColourFrames(const sim::Scene& scene) {
+    sim::Scene empty = scene;
+    empty.people.clear();
+    for (const sim::Person& p : scene.people) people_.push_back(sim::EvaluatePerson(p, 0.0));
+    for (int c = 0; c < static_cast<int>(scene.cameras.size()); ++c) {
+      with_people_.emplace_back(scene, c);
+      without_.emplace_back(empty, c);
+    }
+  }
+  [[nodiscard]] int cameras() const { return static_cast<int>(with_people_.size()); }
+  /// Frame i (at i / 30 s) of every camera, fed to `pipeline`; then one cycle.
+  std::shared_ptr<const OccupancySnapshot> Cycle(Pipeline& pipeline, int i, bool present) {
+    frame_.kind = capture::FrameKind::kRgb;
+    frame_.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
+    frame_.index = static_cast<std::uint64_t>(i);
+    for (int c = 0; c < cameras(); ++c) {
+      (present ? with_people_ : without_)[c].Render(present ? people_ : nobody_, i / 30.0,
+                                                    frame_.index, &frame_.rgb);
+      pipeline.Feed(c, frame_);
+    }
+    return pipeline.Step(frame_.stamp_ns);
+  }
+
+ private:
+  std::vector<sim::BodyState> people_, nobody_;
+  std::vector<sim::ColourRenderer> with_people_, without_;
+  capture::Frame frame_;
+};
+
 // The daemon restarts while people stand in the cell. With the background it
 // learned before kept in background_dir, they are foreground from the first
 // frame on; a pipeline that learns afresh takes them for background and, once
@@ -367,18 +400,10 @@ TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
 TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   namespace fs = std::filesystem;
   const std::shared_ptr<sim::Scene> scene = StandingScene();
-  sim::Scene empty = *scene;
-  empty.people.clear();
   const fs::path dir = fs::temp_directory_path() / ("hg_background_" + std::to_string(getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
-  std::vector<sim::BodyState> people;
-  for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
-  std::vector<sim::ColourRenderer> with_people, without;
-  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
-    with_people.emplace_back(*scene, c);
-    without.emplace_back(empty, c);
-  }
+  StillColourFrames frames(*scene);
   PipelineOptions options;
   options.bounds = scene->bounds;
   options.depth = 7;
@@ -395,19 +420,7 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   // Feeds frames [first, first + n) with or without the people; the last snapshot.
   auto run = [&](Pipeline& pipeline, int first, int n, bool present) {
     std::shared_ptr<const OccupancySnapshot> last;
-    capture::Frame frame;
-    frame.kind = capture::FrameKind::kRgb;
-    for (int i = first; i < first + n; ++i) {
-      frame.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
-      frame.index = static_cast<std::uint64_t>(i);
-      for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
-        (present ? with_people : without)[c].Render(
-            present ? people : std::vector<sim::BodyState>{}, i / 30.0,
-            static_cast<std::uint64_t>(i), &frame.rgb);
-        pipeline.Feed(c, frame);
-      }
-      last = pipeline.Step(frame.stamp_ns);
-    }
+    for (int i = first; i < first + n; ++i) last = frames.Cycle(pipeline, i, present);
     return last;
   };
   auto reported_free = [&](const OccupancySnapshot& s) {
@@ -449,15 +462,7 @@ TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
   std::shared_ptr<sim::Scene> scene = StandingScene();
   scene->imaging.light_change_amplitude = 0.15;
   scene->imaging.light_change_period_s = 20.0;
-  sim::Scene empty = *scene;
-  empty.people.clear();
-  std::vector<sim::BodyState> people;
-  for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
-  std::vector<sim::ColourRenderer> with_people, without;
-  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
-    with_people.emplace_back(*scene, c);
-    without.emplace_back(empty, c);
-  }
+  StillColourFrames frames(*scene);
   PipelineOptions options;
   options.bounds = scene->bounds;
   options.depth = 6;
@@ -468,20 +473,11 @@ TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
   Pipeline pipeline(options, std::move(cameras), {}, nullptr);
   constexpr int kLearn = 30, kStill = 60 * 30;  // Frames at 30 Hz.
   const auto points = testing::PointsInPeople(*scene, 0.0, 300, 9);
-  capture::Frame frame;
-  frame.kind = capture::FrameKind::kRgb;
   int checked = 0, free = 0;
   std::size_t most_listed = 0, first_listed = 0;
   for (int i = 0; i < kLearn + kStill; ++i) {
     const bool present = i >= kLearn;
-    frame.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
-    for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
-      (present ? with_people : without)[c].Render(present ? people : std::vector<sim::BodyState>{},
-                                                  i / 30.0, static_cast<std::uint64_t>(i),
-                                                  &frame.rgb);
-      pipeline.Feed(c, frame);
-    }
-    const auto s = pipeline.Step(frame.stamp_ns);
+    const auto s = frames.Cycle(pipeline, i, present);
     if (present && (i - kLearn) % 10 == 0) {
       free += testing::PointsInUnlistedCells(points, s->bounds.min, s->bounds.max, s->depth,
                                              {&s->occupied, &s->occluded});
