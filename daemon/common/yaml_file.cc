@@ -1,5 +1,6 @@
 #include "common/yaml_file.h"
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -18,6 +19,9 @@ YAML::Node ParseYaml(const std::string& text, const std::string& file) {
 }
 
 YAML::Node LoadYamlFile(const std::string& path) {
+  std::error_code ec;
+  if (std::filesystem::is_directory(path, ec))
+    throw ConfigError::At(path, 0, "is a folder, not a file");
   std::ifstream in(path);
   if (!in) throw ConfigError::At(path, 0, "cannot open");
   std::ostringstream text;

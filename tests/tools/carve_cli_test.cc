@@ -477,6 +477,8 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
       {"carve --cameras " + Path("cams17.yaml") + " --masks" + seventeen_masks +
            " --bounds 0 0 0 2 2 2 --depth 4",
        "cams17.yaml: 17 cameras, at most 16"},
+      {"carve --cameras " + Path("") + " --masks" + Masks() + " --bounds 0 0 0 2 2 2 --depth 6",
+       "is a folder, not a file"},
   };
   for (const Case& c : cases) {
     const ProcessResult r = Hullguard(c.args);
