@@ -122,7 +122,9 @@ std::optional<DecomposeResult> DecomposeProjection(const Eigen::Matrix<double, 3
   // (which is arbitrary) does not matter.
   const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(M).singularValues();
   if (!(sv(0) > 0.0) || sv(2) < 1e-9 * sv(0)) {
-    return fail("P has rank < 3");
+    const Eigen::Vector3d full = Eigen::JacobiSVD<Eigen::Matrix<double, 3, 4>>(Ps).singularValues();
+    if (!(full(0) > 0.0) || full(2) < 1e-9 * full(0)) return fail("P has rank < 3");
+    return fail("P's left 3x3 block is singular: a camera at infinity, not a pinhole camera");
   }
 
   // K has a positive diagonal and R is proper, so det(K R) > 0: a negative

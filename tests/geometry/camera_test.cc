@@ -147,14 +147,22 @@ TEST(DecomposeProjectionTest, RecoversRandomCamerasAtAnyScaleAndSign) {
 }
 
 TEST(DecomposeProjectionTest, RejectsRankDeficientLeftBlock) {
+  const std::string at_infinity =
+      "P's left 3x3 block is singular: a camera at infinity, not a pinhole camera";
   Eigen::Matrix<double, 3, 4> P;
   P << 800, 0, 320, 1, 0, 800, 240, 2, 0, 0, 0, 1;  // Third row of the 3x3 block is zero.
   std::string error;
   EXPECT_FALSE(DecomposeProjection(P, &error).has_value());
-  EXPECT_EQ(error, "P has rank < 3");
+  EXPECT_EQ(error, at_infinity);  // P itself has rank 3.
 
-  // Third row a combination of the first two, at a large overall scale.
+  // Third row a combination of the first two in the 3x3 block, at a large
+  // overall scale; with the last column too, P has rank 2.
   P << 800, 0, 320, 1, 0, 800, 240, 2, 1600, 800, 880, 3;
+  P *= 1e6;
+  error.clear();
+  EXPECT_FALSE(DecomposeProjection(P, &error).has_value());
+  EXPECT_EQ(error, at_infinity);
+  P << 800, 0, 320, 1, 0, 800, 240, 2, 1600, 800, 880, 4;
   P *= 1e6;
   error.clear();
   EXPECT_FALSE(DecomposeProjection(P, &error).has_value());

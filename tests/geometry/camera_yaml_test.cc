@@ -336,8 +336,16 @@ TEST(CameraYamlErrorTest, RankDeficientP) {
       "  - name: p\n"
       "    width: 10\n"
       "    height: 10\n"
-      "    P: [1, 0, 0, 0, 0, 1, 0, 0, 1, 1, 0, 1]\n",
+      "    P: [1, 0, 0, 0, 0, 1, 0, 0, 1, 1, 0, 0]\n",
       5, {"cameras[0].P: P has rank < 3"});
+  // Rank 3, but no pinhole camera: its centre is at infinity.
+  ExpectError(
+      "cameras:\n"
+      "  - name: p\n"
+      "    width: 10\n"
+      "    height: 10\n"
+      "    P: [1, 0, 0, 0, 0, 1, 0, 0, 1, 1, 0, 1]\n",
+      5, {"cameras[0].P: P's left 3x3 block is singular"});
 }
 
 TEST(CameraYamlErrorTest, BadRotationAndIntrinsics) {
