@@ -412,7 +412,8 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
                 "kept across restarts, as background-<camera>.bin; empty: every start learns. A "
                 "camera whose file is there and fits takes it up instead of learning, so a person "
                 "in the cell when the daemon restarts stays foreground; one that learns writes its "
-                "file when learning ends. The cell must be empty when a camera learns. To learn "
+                "file when learning ends (making the folder if missing). The cell must be empty "
+                "when a camera learns. To learn "
                 "again, remove the files while the daemon is stopped."},
 };
 

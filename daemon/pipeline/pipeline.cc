@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <string>
 
 #include "common/log.h"
@@ -200,8 +201,10 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       c.background->Apply(frame.grey, &c.foreground);
     }
     if (was_learning && !c.background->learning() && !options_.background_dir.empty()) {
-      // Once per learning, at the end of warm-up.
+      // Once per learning, at the end of warm-up; the folder is made if missing.
       std::string error;
+      std::error_code ec;
+      std::filesystem::create_directories(options_.background_dir, ec);
       if (c.background->Save(BackgroundFile(camera), &error)) {
         log::Info("{}: background learned, saved to {}", c.model.name, BackgroundFile(camera));
       } else {

@@ -74,7 +74,8 @@ struct PipelineOptions {
   /// whose file is there and fits takes it up instead of learning: a person
   /// in the cell when the daemon restarts stays foreground. A camera that
   /// learns (no file, or one that does not fit) writes its file when learning
-  /// ends. To learn again, remove the files while the daemon is stopped.
+  /// ends (making the folder if it is missing). To learn again, remove the
+  /// files while the daemon is stopped.
   std::string background_dir;
   /// SCHED_FIFO priority of the fusion thread (0: normal scheduling). Where
   /// the system refuses it, a warning is logged and the thread runs as is.

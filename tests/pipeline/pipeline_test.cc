@@ -400,9 +400,9 @@ class StillColourFrames {
 TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   namespace fs = std::filesystem;
   const std::shared_ptr<sim::Scene> scene = StandingScene();
-  const fs::path dir = fs::temp_directory_path() / ("hg_background_" + std::to_string(getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path top = fs::temp_directory_path() / ("hg_background_" + std::to_string(getpid()));
+  const fs::path dir = top / "kept";  // Missing: the pipeline makes it.
+  fs::remove_all(top);
   StillColourFrames frames(*scene);
   PipelineOptions options;
   options.bounds = scene->bounds;
@@ -451,7 +451,7 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   const auto learned = run(*fresh, 100, options.background.learn_frames + 3, /*present=*/true);
   ASSERT_NE(learned, nullptr);
   EXPECT_GT(reported_free(*learned), 0) << "the people were not learned: the test shows nothing";
-  fs::remove_all(dir);
+  fs::remove_all(top);
 }
 
 // Two people stand motionless for a minute of simulated time, in colour
