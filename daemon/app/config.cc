@@ -243,8 +243,8 @@ struct CameraBlockKey {
 };
 const CameraBlockKey kCameraBlockKeys[] = {
     {"name", "string", "required", "Unique camera name."},
-    {"width", "integer", "required", "Image width (pixels), 1 .. 65535."},
-    {"height", "integer", "required", "Image height (pixels), 1 .. 65535."},
+    {"width", "integer", "1920", "Image width (pixels), 1 .. 65535."},
+    {"height", "integer", "1080", "Image height (pixels), 1 .. 65535."},
     {"K", "9 numbers", "required (unless P)", "Intrinsics, row-major, last row 0 0 1."},
     {"distortion", "5 numbers", "0 0 0 0 0", "OpenCV k1 k2 p1 p2 k3."},
     {"R", "9 numbers", "-", "World-to-camera rotation, row-major; with t."},

@@ -72,8 +72,9 @@ class CameraParser {
 
     CameraModel camera;
     Check([&] { camera.name = ParseName(); });
-    Check([&] { camera.width = ParseSide("width"); });
-    Check([&] { camera.height = ParseSide("height"); });
+    // Full HD unless given.
+    Check([&] { camera.width = ParseSide("width", 1920); });
+    Check([&] { camera.height = ParseSide("height", 1080); });
 
     const bool has_p = Has("P");
     const bool has_krt = Has("K") || Has("R") || Has("t");
@@ -209,8 +210,8 @@ class CameraParser {
     return v.Scalar();
   }
 
-  int ParseSide(const std::string& key) const {
-    Require(key);
+  int ParseSide(const std::string& key, int absent) const {
+    if (!Has(key)) return absent;
     const YAML::Node& v = Value(key);
     int side = 0;
     bool ok = v.IsScalar();

@@ -96,6 +96,17 @@ TEST(CameraYamlTest, LoadsBothCameras) {
   EXPECT_EQ(cams[1].t_CW, Eigen::Vector3d(1, 2, 3));
 }
 
+// Width and height default to Full HD.
+TEST(CameraYamlTest, SizeDefaultsToFullHd) {
+  const std::vector<CameraModel> cams =
+      LoadCamerasFile(WriteTemp(std::string(kCam0) + Replace(Replace(kCam1, "    width: 320\n", ""),
+                                                             "    height: 240\n", "")));
+  ASSERT_EQ(cams.size(), 2u);
+  EXPECT_EQ(cams[1].width, 1920);
+  EXPECT_EQ(cams[1].height, 1080);
+  EXPECT_EQ(cams[0].width, 640);  // Given: kept.
+}
+
 TEST(CameraYamlTest, WriteThenLoadIsExact) {
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
@@ -316,8 +327,6 @@ TEST(CameraYamlErrorTest, NotANumber) {
 TEST(CameraYamlErrorTest, UnknownDuplicateAndMissingKeys) {
   ExpectError(std::string(kCam0) + "    foo: 1\n" + kCam1, 9, {"cameras[0]: unknown key 'foo'"});
   ExpectError(std::string(kCam0) + "    width: 640\n", 9, {"cameras[0]: duplicate key 'width'"});
-  ExpectError(std::string(kCam0) + Replace(kCam1, "    width: 320\n", ""), 9,
-              {"cameras[1]: missing key 'width'"});
   ExpectError(Replace(kCam0, "    t: [0, 0, 2]\n", ""), 2, {"cameras[0]: missing key 't'"});
   ExpectError(Replace(kCam0, "  - name: cam0\n", "  - width: 1\n"), 3,
               {"cameras[0]: duplicate key 'width'"});
