@@ -360,6 +360,33 @@ TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
 // The colour path: a recording of colour frames (the empty cell first, then
 // two people standing) replayed through the background model. Once the model
 // has learned the empty cell, every point of the people is occupied.
+// Polls a running pipeline (for at most 10 s) for `n` new healthy snapshots
+// stamped after `from_ns` and calls check(snapshot) on each; returns how many
+// it saw.
+template <class Check>
+int ForHealthySnapshots(const Pipeline& pipeline, std::int64_t from_ns, int n, Check check) {
+  int checked = 0;
+  std::uint64_t seen = 0;
+  const auto give_up = std::chrono::steady_clock::now() + 10s;
+  while (std::chrono::steady_clock::now() < give_up && checked < n) {
+    const auto s = pipeline.Latest();
+    if (s && s->sequence != seen && s->stamp_ns > from_ns && !s->health.degraded) {
+      seen = s->sequence;
+      check(*s);
+      ++checked;
+    }
+    std::this_thread::sleep_for(5ms);
+  }
+  return checked;
+}
+
+// Points inside the (standing) people of `scene` published free in `s`.
+int PeoplePointsFree(const sim::Scene& scene, const OccupancySnapshot& s) {
+  return testing::PointsInUnlistedCells(testing::PointsInPeople(scene, 0.0, 100, s.sequence),
+                                        s.bounds.min, s.bounds.max, s.depth,
+                                        {&s.occupied, &s.occluded});
+}
+
 // Colour frames of a scene whose people stand still in their pose at t = 0,
 // with them or without them (the empty cell), for lock-step Feed() and Step().
 class StillColourFrames {
@@ -536,22 +563,13 @@ TEST(PipelineTest, SimColourFramesGoThroughTheBackgroundModel) {
   pipeline.Start();
   const std::int64_t people_from =
       clock.epoch_ns + static_cast<std::int64_t>((kEmptyS + 0.2) * 1e9);
-  int checked = 0, free = 0;
-  std::uint64_t seen = 0;
-  const auto give_up = std::chrono::steady_clock::now() + 10s;
-  while (std::chrono::steady_clock::now() < give_up && checked < 10) {
-    const auto s = pipeline.Latest();
-    if (s && s->sequence != seen && s->stamp_ns > people_from && !s->health.degraded) {
-      seen = s->sequence;
-      free += testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 100, seen),
-                                             s->bounds.min, s->bounds.max, s->depth,
-                                             {&s->occupied, &s->occluded});
-      EXPECT_LT(OccupancySnapshot::Cells(s->occupied) + OccupancySnapshot::Cells(s->occluded),
-                (std::size_t{1} << (3 * options.publish_depth)) / 2);
-      ++checked;
-    }
-    std::this_thread::sleep_for(10ms);
-  }
+  int free = 0;
+  const int checked =
+      ForHealthySnapshots(pipeline, people_from, 10, [&](const OccupancySnapshot& s) {
+        free += PeoplePointsFree(*scene, s);
+        EXPECT_LT(OccupancySnapshot::Cells(s.occupied) + OccupancySnapshot::Cells(s.occluded),
+                  (std::size_t{1} << (3 * options.publish_depth)) / 2);
+      });
   pipeline.Stop();
   EXPECT_EQ(checked, 10) << "too few healthy cycles with the people in";
   EXPECT_EQ(free, 0);
@@ -606,21 +624,12 @@ TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
   Pipeline pipeline(options, std::move(cameras), {}, nullptr);
   pipeline.Start();
   const std::int64_t people_from = clock.epoch_ns + (kEmptyFrames + 3) * 1'000'000'000LL / 30;
-  int checked = 0, free = 0;
-  std::uint64_t seen = 0;
-  const auto give_up = std::chrono::steady_clock::now() + 10s;
-  while (std::chrono::steady_clock::now() < give_up && checked < 10) {
-    const auto s = pipeline.Latest();
-    if (s && s->sequence != seen && s->stamp_ns > people_from && !s->health.degraded) {
-      seen = s->sequence;
-      free += testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 100, seen),
-                                             s->bounds.min, s->bounds.max, s->depth,
-                                             {&s->occupied, &s->occluded});
-      EXPECT_GT(OccupancySnapshot::Cells(s->occupied), 0U);
-      ++checked;
-    }
-    std::this_thread::sleep_for(5ms);
-  }
+  int free = 0;
+  const int checked =
+      ForHealthySnapshots(pipeline, people_from, 10, [&](const OccupancySnapshot& s) {
+        free += PeoplePointsFree(*scene, s);
+        EXPECT_GT(OccupancySnapshot::Cells(s.occupied), 0U);
+      });
   pipeline.Stop();
   fs::remove_all(dir);
   EXPECT_EQ(checked, 10);
