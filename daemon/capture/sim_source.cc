@@ -30,15 +30,14 @@ void ComposeColour(const common::ImageRgb8& empty, const common::ImageRgb8& pain
   // People: where the mask is set, 8 pixels at a time skipped while clear.
   const std::uint8_t* m = mask.pixels.data();
   const std::uint8_t* fg = painted.pixels.data();
-  for (std::size_t p = 0; p < pixels;) {
+  for (std::size_t start = 0; start < pixels; start += 8) {
+    const std::size_t end = std::min(pixels, start + 8);
     std::uint64_t word = 0;
-    if (p + 8 <= pixels) std::memcpy(&word, m + p, 8);
-    if (p + 8 <= pixels && word == 0) {
-      p += 8;
-      continue;
+    std::memcpy(&word, m + start, end - start);
+    if (word == 0) continue;
+    for (std::size_t p = start; p < end; ++p) {
+      if (m[p] != 0) std::memcpy(o + 3 * p, fg + 3 * p, 3);
     }
-    if (m[p] != 0) std::memcpy(o + 3 * p, fg + 3 * p, 3);
-    ++p;
   }
   // A multiplicative hash of the index: the noise differs from frame to frame.
   const std::size_t offset =
