@@ -187,8 +187,9 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
                                                                    options_.background);
       if (!options_.background_dir.empty()) {
         std::string error;
-        if (c.background->Load(BackgroundFile(camera), &error)) {
-          log::Info("{}: background taken up from {}", c.model.name, BackgroundFile(camera));
+        const std::string file = BackgroundFile(camera);
+        if (c.background->Load(file, &error)) {
+          log::Info("{}: background taken up from {}", c.model.name, file);
         } else {
           log::Info("{}: learning the background ({})", c.model.name, error);
         }
@@ -205,8 +206,9 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       std::string error;
       std::error_code ec;
       std::filesystem::create_directories(options_.background_dir, ec);
-      if (c.background->Save(BackgroundFile(camera), &error)) {
-        log::Info("{}: background learned, saved to {}", c.model.name, BackgroundFile(camera));
+      const std::string file = BackgroundFile(camera);
+      if (c.background->Save(file, &error)) {
+        log::Info("{}: background learned, saved to {}", c.model.name, file);
       } else {
         log::Warn("{}: background learned, not saved: {}", c.model.name, error);
       }
