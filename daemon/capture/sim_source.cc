@@ -6,52 +6,65 @@
 #include <random>
 #include <thread>
 
+#include <emmintrin.h>
+
 #include "sim/colour_renderer.h"
 
 namespace hg::capture {
 namespace {
 
 constexpr std::size_t kNoiseTable = std::size_t{1} << 16;  // A power of two.
+constexpr std::size_t kChunk = 16;                         // Pixels composed together.
 
 // The empty cell with the mask's pixels taken from `painted` (the empty cell
-// 100 grey levels off), plus noise read from `noise` (2 * kNoiseTable entries,
-// so that a block of kNoiseTable bytes reads it contiguously) at an offset
-// chosen per frame. Plain loops the compiler vectorises: about 2 ms per Full
-// HD frame.
+// 100 grey levels off), plus noise: `up` and `down` (kNoiseTable + kChunk
+// entries past any offset) hold its positive and negative parts, read at an
+// offset chosen per frame. One pass, 16 pixels at a time: saturating byte
+// arithmetic (SSE2) where the mask is clear, pixel by pixel where it is not.
+// About 1 ms per Full HD frame, most of it memory traffic.
 void ComposeColour(const common::ImageRgb8& empty, const common::ImageRgb8& painted,
-                   const common::ImageU8& mask, const std::vector<std::int8_t>& noise,
-                   std::uint64_t frame_index, common::ImageRgb8* out) {
+                   const common::ImageU8& mask, const std::vector<std::uint8_t>& up,
+                   const std::vector<std::uint8_t>& down, std::uint64_t frame_index,
+                   common::ImageRgb8* out) {
   if (out->width != empty.width || out->height != empty.height) {
     *out = common::ImageRgb8(empty.width, empty.height);  // First frame only.
   }
   const std::size_t pixels = static_cast<std::size_t>(empty.width) * empty.height;
-  std::uint8_t* o = out->pixels.data();
-  std::copy(empty.pixels.begin(), empty.pixels.end(), o);
-  // People: where the mask is set, 8 pixels at a time skipped while clear.
-  const std::uint8_t* m = mask.pixels.data();
-  const std::uint8_t* fg = painted.pixels.data();
-  for (std::size_t start = 0; start < pixels; start += 8) {
-    const std::size_t end = std::min(pixels, start + 8);
-    std::uint64_t word = 0;
-    std::memcpy(&word, m + start, end - start);
-    if (word == 0) continue;
-    for (std::size_t p = start; p < end; ++p) {
-      if (m[p] != 0) std::memcpy(o + 3 * p, fg + 3 * p, 3);
-    }
-  }
   // A multiplicative hash of the index: the noise differs from frame to frame.
   const std::size_t offset =
       static_cast<std::size_t>(frame_index * 0x9E3779B97F4A7C15ULL >> 40) & (kNoiseTable - 1);
-  const std::int8_t* n = noise.data() + offset;
-  const std::size_t bytes = 3 * pixels;
-  for (std::size_t start = 0; start < bytes; start += kNoiseTable) {
-    const std::size_t end = std::min(bytes, start + kNoiseTable);
-    std::uint8_t* block = o + start;
-    for (std::size_t j = 0; j < end - start; ++j) {
-      const int v = block[j] + n[j];
-      block[j] = static_cast<std::uint8_t>(std::clamp(v, 0, 255));
+  const std::uint8_t* m = mask.pixels.data();
+  const std::uint8_t* e = empty.pixels.data();
+  const std::uint8_t* fg = painted.pixels.data();
+  std::uint8_t* o = out->pixels.data();
+  // Bytes [i, i + n) of pixels, noise from the tables at j on.
+  auto pixel_by_pixel = [&](std::size_t first_pixel, std::size_t n, std::size_t j) {
+    for (std::size_t k = 0; k < 3 * n; ++k) {
+      const std::size_t i = 3 * first_pixel + k;
+      const std::uint8_t value = m[first_pixel + k / 3] != 0 ? fg[i] : e[i];
+      const int v = std::min(255, value + up[j + k]) - down[j + k];
+      o[i] = static_cast<std::uint8_t>(std::max(0, v));
+    }
+  };
+  const __m128i zero = _mm_setzero_si128();
+  std::size_t p = 0;
+  for (; p + kChunk <= pixels; p += kChunk) {
+    const std::size_t i = 3 * p;
+    const std::size_t j = offset + (i & (kNoiseTable - 1));
+    const __m128i people = _mm_loadu_si128(reinterpret_cast<const __m128i*>(m + p));
+    if (_mm_movemask_epi8(_mm_cmpeq_epi8(people, zero)) != 0xFFFF) {
+      pixel_by_pixel(p, kChunk, j);
+      continue;
+    }
+    for (std::size_t b = 0; b < 3 * kChunk; b += 16) {
+      const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(e + i + b));
+      const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(up.data() + j + b));
+      const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(down.data() + j + b));
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(o + i + b),
+                       _mm_subs_epu8(_mm_adds_epu8(x, a), d));
     }
   }
+  if (p < pixels) pixel_by_pixel(p, pixels - p, offset + ((3 * p) & (kNoiseTable - 1)));
 }
 
 }  // namespace
@@ -87,12 +100,16 @@ void SimSource::EnableColour(double empty_s) {
   painted_ = empty_;
   for (std::uint8_t& v : painted_.pixels)
     v = static_cast<std::uint8_t>(v < 128 ? v + 100 : v - 100);
-  noise_.resize(2 * kNoiseTable);
+  // Any offset below kNoiseTable may be followed by kNoiseTable + 3 * kChunk reads.
+  const std::size_t table = 2 * kNoiseTable + 3 * kChunk;
+  noise_up_.assign(table, 0);
+  noise_down_.assign(table, 0);
   std::mt19937_64 rng(scene_->imaging.seed + static_cast<std::uint64_t>(camera_index_));
   std::normal_distribution<double> gauss(0.0, scene_->imaging.noise_sigma);
-  for (std::size_t i = 0; i < kNoiseTable; ++i) {
-    noise_[i] = static_cast<std::int8_t>(std::clamp(std::lround(gauss(rng)), -127L, 127L));
-    noise_[i + kNoiseTable] = noise_[i];
+  for (std::size_t i = 0; i < table; ++i) {
+    const long n = std::clamp(std::lround(gauss(rng)), -127L, 127L);
+    noise_up_[i] = static_cast<std::uint8_t>(std::max(0L, n));
+    noise_down_[i] = static_cast<std::uint8_t>(std::max(0L, -n));
   }
 }
 
@@ -128,7 +145,7 @@ bool SimSource::Next(Frame* frame, std::chrono::milliseconds timeout) {
     if (t < empty_s_) people_.clear();  // Resized again by the next frame's poses.
     renderer_.Render(people_, &mask_);
     frame->kind = FrameKind::kRgb;
-    ComposeColour(empty_, painted_, mask_, noise_, index_, &frame->rgb);
+    ComposeColour(empty_, painted_, mask_, noise_up_, noise_down_, index_, &frame->rgb);
   }
   frame->stamp_ns = clock_.epoch_ns + since_start.count();
   frame->index = index_++;

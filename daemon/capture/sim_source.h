@@ -73,8 +73,9 @@ class SimSource : public CameraSource {
   bool colour_ = false;
   double empty_s_ = 0.0;
   common::ImageRgb8 empty_;
-  common::ImageRgb8 painted_;  // The empty cell 100 grey levels off: the people's colour.
-  std::vector<std::int8_t> noise_;
+  common::ImageRgb8 painted_;           // The empty cell 100 grey levels off: the people's colour.
+  std::vector<std::uint8_t> noise_up_;  // The noise where positive, 0 elsewhere.
+  std::vector<std::uint8_t> noise_down_;  // Minus the noise where negative, 0 elsewhere.
   common::ImageU8 mask_;
 };
 

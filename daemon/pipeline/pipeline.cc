@@ -175,6 +175,8 @@ std::string Pipeline::BackgroundFile(int camera) const {
 void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare) {
   CameraRuntime& c = *cameras_[camera];
   const common::ImageU8* mask = &frame.grey;
+  // A buffer of ours holding the mask, which the slot may take over whole.
+  common::ImageU8* swappable = spare;
   if (frame.kind != capture::FrameKind::kMask) {
     // A frozen, black, saturated or moved camera certifies nothing: its
     // frames are dropped and fusion counts it as seeing nothing.
@@ -216,6 +218,8 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     // A (2 r + 1)^2 square, without allocating once the scratch has grown.
     silhouette::DilateSquare(&c.foreground, options_.background_dilate_px, &c.dilate_scratch);
     mask = &c.foreground;
+    // Written whole by the next frame's Apply(): any buffer of its size will do.
+    swappable = &c.foreground;
   }
   if (mask->width != c.model.width || mask->height != c.model.height) {
     c.corrupt.fetch_add(1, std::memory_order_relaxed);  // Not this camera's size.
@@ -224,9 +228,10 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
   Slot& slot = c.slot.BeginWrite();
   if (c.undistorter) {
     c.undistorter->Apply(mask->View(), 127, &slot.mask);
-  } else if (mask == spare) {
-    // Swapped, not copied: the source refills the slot's previous buffer.
-    std::swap(slot.mask, *spare);
+  } else if (mask == swappable) {
+    // Swapped, not copied: the source, or the background model, refills the
+    // slot's previous buffer.
+    std::swap(slot.mask, *swappable);
   } else {
     slot.mask.width = mask->width;
     slot.mask.height = mask->height;

@@ -133,6 +133,38 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
 /// the frame brought back to the reference illumination. `rate_q17` is
 /// rate / gain in 1/2^17, so that the product of (d * 128) and it, high 16 bits
 /// kept, is the step in 1/256 grey levels (one 16-bit multiply-high per sample).
+// One learning frame over n samples: each mean (8.8, split into high and low
+// bytes) moves to the running average with the frame brought back to the
+// reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
+// 2^16 / (frames averaged + 1), 0 for the first frame (the mean becomes x).
+// With `unbias_q12` > 0 the deviation of x from the new mean, in quarter
+// levels, is added up. 32-bit lanes suffice: |x - m| < 2^16 and
+// inverse_count <= 2^15 after the first frame, and (p + 2^15) >> 16 is
+// computed as ((p >> 1) + 2^14) >> 15, which is the same for every p.
+HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_t n,
+                                std::uint32_t inverse_gain, std::int32_t inverse_count,
+                                std::int32_t unbias_q12, std::uint8_t* __restrict mean_high,
+                                std::uint8_t* __restrict mean_low,
+                                std::uint16_t* __restrict deviation) {
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t scaled = (frame[i] * inverse_gain) >> 8;
+    const auto x = static_cast<std::int32_t>(scaled < 65535u ? scaled : 65535u);
+    const std::int32_t m = (mean_high[i] << 8) | mean_low[i];
+    std::int32_t updated = x;
+    if (inverse_count != 0) updated = m + (((((x - m) * inverse_count) >> 1) + (1 << 14)) >> 15);
+    updated = updated < 0 ? 0 : updated > 65535 ? 65535 : updated;
+    mean_high[i] = static_cast<std::uint8_t>(updated >> 8);
+    mean_low[i] = static_cast<std::uint8_t>(updated);
+    if (unbias_q12 != 0) {
+      const std::int32_t d = x > updated ? x - updated : updated - x;
+      // 8.8 -> quarter levels: >> 6; Q12: >> 12.
+      const std::int32_t term = (d * unbias_q12) >> 18;
+      deviation[i] = static_cast<std::uint16_t>(
+          deviation[i] + (term < kMaxDeviationTerm ? term : kMaxDeviationTerm));
+    }
+  }
+}
+
 HG_VECTOR_CLONES void AdaptSpan(const std::uint8_t* __restrict frame,
                                 std::uint8_t* __restrict mean_high,
                                 std::uint8_t* __restrict mean_low, int n, std::uint16_t gain_q8,
@@ -478,22 +510,9 @@ void BackgroundModel::Learn(const std::uint8_t* frame) {
   const auto unbias_q12 =
       measure_noise ? static_cast<std::int64_t>(std::lround(4096.0 * std::sqrt((k + 1.0) / k))) : 0;
   const std::size_t n = static_cast<std::size_t>(width_) * height_ * channels_;
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::int64_t x = std::min<std::uint32_t>((frame[i] * inverse_gain) >> 8, 65535);
-    const std::int64_t m = Mean(i);
-    const std::int64_t updated =
-        k == 0 ? x : m + (((x - m) * inverse_count + (std::int64_t{1} << 15)) >> 16);
-    const auto stored = static_cast<std::uint16_t>(std::clamp<std::int64_t>(updated, 0, 65535));
-    mean_high_[i] = static_cast<std::uint8_t>(stored >> 8);
-    mean_low_[i] = static_cast<std::uint8_t>(stored);
-    if (measure_noise) {
-      const std::int64_t deviation = x > updated ? x - updated : updated - x;
-      // 8.8 -> quarter levels: >> 6; Q12: >> 12.
-      const std::int64_t term =
-          std::min<std::int64_t>((deviation * unbias_q12) >> 18, kMaxDeviationTerm);
-      deviation_[i] = static_cast<std::uint16_t>(deviation_[i] + term);
-    }
-  }
+  LearnSpan(frame, n, inverse_gain, k == 0 ? 0 : static_cast<std::int32_t>(inverse_count),
+            static_cast<std::int32_t>(unbias_q12), mean_high_.data(), mean_low_.data(),
+            deviation_.data());
   if (measure_noise) ++deviation_frames_;
 }
 

@@ -14,9 +14,9 @@ namespace hg::silhouette {
 /// Grows the foreground of `mask` (non-zero) in place to every pixel within
 /// Chebyshev distance `radius_px` of it, pixel-exact: a (2 r + 1)^2 square,
 /// cut at the image border, as cv::dilate with its default 3x3 kernel
-/// applied r times. Foreground becomes 255. Two separable passes; `scratch`
-/// holds the intermediate image and allocates only when it is smaller than
-/// the mask, so a per-frame call with a kept scratch does not allocate.
+/// applied r times. Foreground becomes 255. Separable, in one pass over the
+/// mask; `scratch` holds 2 r + 1 rows and allocates only when it is smaller
+/// than that, so a per-frame call with a kept scratch does not allocate.
 void DilateSquare(common::ImageU8* mask, int radius_px, std::vector<std::uint8_t>* scratch);
 
 /// Grows the foreground of a mask by at least `radius_px` pixels in every

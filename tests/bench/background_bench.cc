@@ -130,5 +130,22 @@ void BM_BackgroundModelFullHdMono8(benchmark::State& state) {
 }
 BENCHMARK(BM_BackgroundModelFullHdMono8)->Unit(benchmark::kMillisecond);
 
+// Learning the empty cell at start-up: the whole learning of one camera (30
+// frames by default) per iteration, reported per frame.
+void BM_BackgroundLearningFullHd(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  common::ImageU8 mask;
+  for (auto _ : state) {
+    silhouette::BackgroundModel model(w.empty[0].width, w.empty[0].height,
+                                      silhouette::BackgroundModelOptions{});
+    for (const common::ImageRgb8& frame : w.empty) model.Apply(frame, &mask);
+    benchmark::DoNotOptimize(model.learning());
+  }
+  state.counters["time_per_frame"] = benchmark::Counter(
+      static_cast<double>(state.iterations() * w.empty.size()),
+      benchmark::Counter::kIsRate | benchmark::Counter::kInvert, benchmark::Counter::kIs1000);
+}
+BENCHMARK(BM_BackgroundLearningFullHd)->Unit(benchmark::kMillisecond);
+
 }  // namespace
 }  // namespace hg::bench

@@ -2,8 +2,11 @@
 // of merely reading the mask.
 #include <benchmark/benchmark.h>
 
+#include <algorithm>
+
 #include "bench/bench_scene.h"
 #include "silhouette/quadtree.h"
+#include "silhouette/tile_dilation.h"
 #include "silhouette/undistort.h"
 
 namespace hg::bench {
@@ -33,6 +36,21 @@ void BM_QuadtreeBuild1080p(benchmark::State& state) {
   state.SetBytesProcessed(state.iterations() * 1920 * 1080);
 }
 BENCHMARK(BM_QuadtreeBuild1080p)->Unit(benchmark::kMillisecond);
+
+// The background model's 2-pixel dilation of a Full HD foreground mask (the
+// colour path of the pipeline), copy of the mask included.
+void BM_DilateSquare1080p(benchmark::State& state) {
+  const BenchScene& s = GetBenchScene(1, 2);
+  common::ImageU8 mask = s.frames[0][0];
+  std::vector<std::uint8_t> scratch;
+  for (auto _ : state) {
+    std::copy(s.frames[0][0].pixels.begin(), s.frames[0][0].pixels.end(), mask.pixels.begin());
+    silhouette::DilateSquare(&mask, 2, &scratch);
+    benchmark::ClobberMemory();
+  }
+  state.SetBytesProcessed(state.iterations() * 1920 * 1080);
+}
+BENCHMARK(BM_DilateSquare1080p)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace hg::bench

@@ -47,8 +47,8 @@ std::vector<int> DistanceToForeground(const common::ImageU8& mask) {
 TEST(DilateSquare, EqualsOpenCvsIteratedSquareDilation) {
   std::mt19937 rng(17);
   std::vector<std::uint8_t> scratch;
-  for (int trial = 0; trial < 40; ++trial) {
-    const int w = 1 + static_cast<int>(rng() % 97), h = 1 + static_cast<int>(rng() % 61);
+  for (int trial = 0; trial < 80; ++trial) {
+    const int w = 1 + static_cast<int>(rng() % 233), h = 1 + static_cast<int>(rng() % 61);
     const int r = static_cast<int>(rng() % 5);
     common::ImageU8 mask(w, h, 0);
     for (std::uint8_t& p : mask.pixels)
