@@ -170,7 +170,7 @@ class Pipeline {
     // Silhouette work (one worker at a time).
     capture::CameraHealthMonitor health_monitor;
     common::ImageU8 foreground;
-    std::vector<std::uint8_t> dilate_scratch;                 // DilateSquare of the foreground.
+    silhouette::DilateScratch dilate_scratch;                 // DilateSquare of the foreground.
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.
     int heartbeat = -1;                                       // Id in heartbeats_, if any.
     // Fusion thread only.

@@ -259,6 +259,7 @@ void BackgroundModel::Reset() {
   gain_ = 1.0;
   gain_q8_ = 256;
   foreground_fraction_ = 1.0;
+  tiles_valid_ = false;
   std::fill(mean_high_.begin(), mean_high_.end(), 0);
   std::fill(mean_low_.begin(), mean_low_.end(), 0);
   std::fill(deviation_.begin(), deviation_.end(), 0);
@@ -425,6 +426,7 @@ void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common
     if (channels_ != 0) Reset();
     channels_ = channels;
   }
+  tiles_valid_ = false;
   if (learning()) {
     Learn(frame);
     ++frames_learned_;
@@ -441,6 +443,7 @@ void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common
     gain_ = gain_q8_ / 256.0;
   }
   Process(frame, mask->pixels.data());
+  tiles_valid_ = true;
   ++frames_applied_;
 }
 

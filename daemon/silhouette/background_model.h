@@ -117,6 +117,14 @@ class BackgroundModel {
   /// unreliable pixel (always foreground). Meaningful once learning ended.
   [[nodiscard]] int ThresholdAt(int u, int v) const;
 
+  /// The 8x8-pixel tiles (ceil(width / 8) per row, row-major) that hold
+  /// foreground in the last mask Apply() wrote: every foreground pixel lies in
+  /// a non-zero tile (shadows reported as background may leave more tiles
+  /// set). Null while learning, when the mask is all foreground.
+  [[nodiscard]] const std::uint8_t* foreground_tiles() const {
+    return tiles_valid_ ? tile_foreground_.data() : nullptr;
+  }
+
   [[nodiscard]] int width() const { return width_; }
   [[nodiscard]] int height() const { return height_; }
   [[nodiscard]] const BackgroundModelOptions& options() const { return options_; }
@@ -155,6 +163,7 @@ class BackgroundModel {
   int frames_learned_ = 0;
   int deviation_frames_ = 0;  ///< Learning frames that fed deviation_.
   std::uint64_t frames_applied_ = 0;
+  bool tiles_valid_ = false;  ///< tile_foreground_ covers the last mask written.
   double gain_ = 1.0;
   int gain_q8_ = 256;
   // Per-frame constants of Process().

@@ -358,6 +358,21 @@ TEST(BackgroundModelTest, RejectsBadOptions) {
   EXPECT_THROW(BackgroundModel(0, 10, BackgroundModelOptions{}), common::ConfigError);
 }
 
+// Every foreground pixel of `mask` lies in a tile the model flags
+// (BackgroundModel::foreground_tiles, which DilateSquare relies on).
+void ExpectTilesCoverTheMask(const BackgroundModel& model, const common::ImageU8& mask) {
+  const std::uint8_t* tiles = model.foreground_tiles();
+  ASSERT_NE(tiles, nullptr);
+  const int tx_n = (mask.width + 7) / 8;
+  for (int v = 0; v < mask.height; ++v) {
+    for (int u = 0; u < mask.width; ++u) {
+      if (mask.At(u, v) == 0) continue;
+      ASSERT_NE(tiles[static_cast<std::size_t>(v / 8) * tx_n + u / 8], 0)
+          << "(" << u << ", " << v << ")";
+    }
+  }
+}
+
 TEST(BackgroundModelTest, AllForegroundWhileLearningThenTheEmptyCellIsBackground) {
   const sim::Scene scene = StandingCell(60.0, 0.15);
   Sequence seq(scene);
@@ -375,6 +390,8 @@ TEST(BackgroundModelTest, AllForegroundWhileLearningThenTheEmptyCellIsBackground
                             [](std::uint8_t p) { return p == 255; }))
         << "frame " << i;
     EXPECT_EQ(model.foreground_fraction(), 1.0);
+    // The all-foreground masks of learning have no tile map, the last one too.
+    EXPECT_EQ(model.foreground_tiles(), nullptr);
   }
   EXPECT_FALSE(model.learning());
   // The noise is learned: 4 sigma of 2 grey levels stays under the minimum.
@@ -382,11 +399,14 @@ TEST(BackgroundModelTest, AllForegroundWhileLearningThenTheEmptyCellIsBackground
   seq.Render(options.learn_frames, /*present=*/false);
   model.Apply(seq.frame, &mask);
   EXPECT_LT(model.foreground_fraction(), 0.01);
+  ExpectTilesCoverTheMask(model, mask);
   // Reset learns again, all foreground meanwhile.
   model.Reset();
   EXPECT_TRUE(model.learning());
+  EXPECT_EQ(model.foreground_tiles(), nullptr);
   model.Apply(seq.frame, &mask);
   EXPECT_EQ(model.foreground_fraction(), 1.0);
+  EXPECT_EQ(model.foreground_tiles(), nullptr);
 }
 
 // A saved background taken up by another model (a restart) classifies exactly
@@ -640,6 +660,8 @@ TEST(BackgroundModelTest, ShadowsAreForegroundUnlessConfiguredOtherwise) {
     seq.Render(i);
     model_with.Apply(seq.frame, &mask_with);
     model_without.Apply(seq.frame, &mask_without);
+    ExpectTilesCoverTheMask(model_with, mask_with);
+    ExpectTilesCoverTheMask(model_without, mask_without);
     long long shadow_size = 0;
     const common::ImageU8 shadow = seq.Shadow();
     share_with = std::min(share_with, ShareForeground(mask_with, shadow, &shadow_size));

@@ -4,22 +4,25 @@
 # be made), `hullguard echo` subscribes, and the latency from each sample's
 # capture stamp to its arrival at the subscriber is summarised, with the
 # daemon's cycle count, deadline misses and missed cycles (does the rate hold?).
-#   tools/perf/pipeline_latency.sh [CONFIG] [SECONDS] [BUILD_DIR]
-# Defaults: config/paper_cell.yaml, 20 s, build. Prints one JSON object.
+#   tools/perf/pipeline_latency.sh [CONFIG] [SECONDS] [SKIP] [BUILD_DIR]
+# Defaults: config/paper_cell.yaml, 20 s, 3 s, build. The first SKIP seconds
+# (start-up: scenes, obstacle depth maps, background learning, the first full
+# build) are not measured: latency and `window_missed_cycles` cover the rest.
+# Prints one JSON object.
 set -eu
 root=$(cd "$(dirname "$0")/../.." && pwd)
 config=${1:-$root/config/paper_cell.yaml}
 seconds=${2:-20}
-build=${3:-$root/build}
+skip=${3:-3}
+build=${4:-$root/build}
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 
 run() {
   "$build/daemon/hullguardd" --config "$config" --duration "$seconds" 2> "$out/daemon.log" &
   d=$!
-  # Skip the first 3 s (start-up: scene loading, first full octree build).
-  sleep 3
-  "$build/tools/hullguard" echo --json --topic status --timeout "$((seconds - 4))" \
+  sleep "$skip"
+  "$build/tools/hullguard" echo --json --topic status --timeout "$((seconds - skip - 1))" \
     > "$out/echo.jsonl" || true
   wait "$d"
 }
@@ -34,6 +37,10 @@ misses=$(echo "$last" | sed -n 's/.*deadline misses \([0-9]*\) .*/\1/p')
 missed=$(echo "$last" | sed -n 's/.*missed cycles \([0-9]*\) .*/\1/p')
 latency=$(grep '"summary": "latency"' "$out/echo.jsonl" | tail -1)
 samples=$(grep -c '"topic": "status"' "$out/echo.jsonl" || true)
-printf '{"config": "%s", "seconds": %s, "cycles": %s, "deadline_misses": %s, "missed_cycles": %s, "status_samples": %s, "latency": %s, "last_health": "%s"}\n' \
-  "$(basename "$config")" "$seconds" "${cycles:-0}" "${misses:-0}" "${missed:-0}" "$samples" "${latency:-null}" \
+# Missed cycles within the measured window: the last status sample's count
+# less the first one's.
+window=$(grep '"topic": "status"' "$out/echo.jsonl" | sed -n 's/.*"missed_cycles": \([0-9]*\).*/\1/p' |
+  awk 'NR == 1 { first = $1 } { last = $1 } END { if (NR > 0) print last - first; else print "null" }')
+printf '{"config": "%s", "seconds": %s, "skipped_s": %s, "cycles": %s, "deadline_misses": %s, "missed_cycles": %s, "window_missed_cycles": %s, "status_samples": %s, "latency": %s, "last_health": "%s"}\n' \
+  "$(basename "$config")" "$seconds" "$skip" "${cycles:-0}" "${misses:-0}" "${missed:-0}" "$window" "$samples" "${latency:-null}" \
   "$(echo "$last" | sed 's/"/\\"/g')"
