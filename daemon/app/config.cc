@@ -288,6 +288,11 @@ const Field<SimSourceConfig> kSimFields[] = {
                 "from their masks with sensor noise (no light changes or shadows; cheap enough "
                 "for 8 Full HD cameras at 30 Hz). The people appear only after 2 * "
                 "background.learn_frames frames plus 1 s, while the cell is learned empty."},
+    {.key = "bayer",
+     .member = &SimSourceConfig::bayer,
+     .meaning = "Colour frames (implies `colour`) delivered as the raw BayerRG8 mosaic, one byte "
+                "per pixel, as a GigE colour camera sends them and the `aravis` source passes "
+                "them on (its `debayer: false`): the background model works per photosite."},
 };
 
 const Field<ReplaySourceConfig> kReplayFields[] = {
@@ -316,6 +321,13 @@ const Field<AravisSourceConfig> kAravisFields[] = {
     {.key = "pixel_format",
      .member = &AravisSourceConfig::pixel_format,
      .meaning = "Pixel format requested from the camera."},
+    {.key = "debayer",
+     .member = &AravisSourceConfig::debayer,
+     .meaning = "Bayer formats only: convert the mosaic to RGB before the background model. "
+                "By default the raw mosaic goes to the model, which then works per photosite: "
+                "a third of the bytes of RGB and no interpolation, each photosite compared in "
+                "its own colour (the foreground dilation, `background.dilate_px` >= 1, fills "
+                "the sites of the other colours)."},
     {.key = "exposure_us",
      .member = &AravisSourceConfig::exposure_us,
      .meaning = "Exposure time (us); unset keeps the camera's setting.",

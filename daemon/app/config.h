@@ -83,6 +83,8 @@ struct SimSourceConfig {
   std::optional<double> stop_after_s;
   /// Colour frames through the background model instead of masks (SimSource::EnableColour).
   bool colour = false;
+  /// Colour frames as the raw BayerRG8 mosaic (implies `colour`).
+  bool bayer = false;
 };
 
 /// Frames played back from a recording.
@@ -97,6 +99,7 @@ struct ReplaySourceConfig {
 struct AravisSourceConfig {
   std::string device;  ///< Serial number, device name or IP address.
   PixelFormat pixel_format = PixelFormat::kMono8;
+  bool debayer = false;  ///< Bayer formats: RGB to the background model instead of the mosaic.
   std::optional<double> exposure_us;
   std::optional<double> gain_db;
   std::optional<double> frame_rate_hz;

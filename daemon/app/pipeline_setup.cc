@@ -107,10 +107,11 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
       auto source =
           std::make_unique<capture::SimSource>(scene, scene_camera[i], scene->rate_hz, clock);
       if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
-      if (sim_source->colour) {
+      if (sim_source->colour || sim_source->bayer) {
         // Twice the learning frames: a camera that drops frames still learns
         // the cell empty.
-        source->EnableColour(2.0 * config.background.learn_frames / scene->rate_hz + 1.0);
+        source->EnableColour(2.0 * config.background.learn_frames / scene->rate_hz + 1.0,
+                             sim_source->bayer);
       }
       cameras.push_back({c.model, std::move(source), c.timeout_ms});
       continue;
@@ -125,6 +126,7 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
       capture::AravisOptions o;
       o.device = gige->device;
       o.pixel_format = static_cast<capture::AravisOptions::Pixel>(gige->pixel_format);
+      o.debayer = gige->debayer;
       o.exposure_us = gige->exposure_us;
       o.gain_db = gige->gain_db;
       o.frame_rate_hz = gige->frame_rate_hz;
@@ -166,7 +168,7 @@ std::vector<pipeline::BlackBoxCamera> BlackBoxCameras(const Config& config) {
     b.model = c.model;
     b.rate_hz = config.blackbox.camera_rate_hz;
     if (const auto* s = std::get_if<SimSourceConfig>(&c.source)) {
-      b.kind = FrameKind::kMask;
+      b.kind = s->bayer ? FrameKind::kMono : s->colour ? FrameKind::kRgb : FrameKind::kMask;
       auto [it, inserted] = scene_rates.emplace(s->scene, 0.0);
       if (inserted) it->second = sim::LoadScene(s->scene).rate_hz;  // ConfigError if bad.
       b.rate_hz = it->second;
@@ -175,7 +177,10 @@ std::vector<pipeline::BlackBoxCamera> BlackBoxCameras(const Config& config) {
       b.kind = rec.kind;
       if (rec.rate_hz > 0.0) b.rate_hz = rec.rate_hz;
     } else if (const auto* a = std::get_if<AravisSourceConfig>(&c.source)) {
-      b.kind = a->pixel_format == PixelFormat::kMono8 ? FrameKind::kMono : FrameKind::kRgb;
+      // Mono8, and Bayer mosaics passed on raw, are one byte per pixel.
+      const bool rgb = a->pixel_format == PixelFormat::kRGB8 ||
+                       (a->pixel_format != PixelFormat::kMono8 && a->debayer);
+      b.kind = rgb ? FrameKind::kRgb : FrameKind::kMono;
       if (a->frame_rate_hz) b.rate_hz = *a->frame_rate_hz;
     } else if (const auto* v = std::get_if<V4l2SourceConfig>(&c.source)) {
       b.kind = v->format == V4l2Format::kGrey ? FrameKind::kMono : FrameKind::kRgb;

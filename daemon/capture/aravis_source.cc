@@ -271,8 +271,9 @@ bool ConvertBuffer(ArvBuffer* buffer, const AravisOptions& options, Frame* frame
   if (data == nullptr || size < stride * static_cast<std::size_t>(h - 1) + row_bytes) return false;
 
   const std::size_t pixels = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
-  switch (options.pixel_format) {
-    case AravisOptions::Pixel::kMono8:
+  const bool raw_mosaic = options.pixel_format != AravisOptions::Pixel::kRGB8 && !options.debayer;
+  switch (raw_mosaic ? AravisOptions::Pixel::kMono8 : options.pixel_format) {
+    case AravisOptions::Pixel::kMono8:  // Or a Bayer mosaic passed on raw.
       frame->kind = FrameKind::kMono;
       frame->grey.width = w;
       frame->grey.height = h;

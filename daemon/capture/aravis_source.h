@@ -25,9 +25,11 @@ struct AravisOptions {
   /// is opened directly (no broadcast discovery needed).
   std::string device;
   /// Pixel formats requested from the camera. Mono8 is delivered as
-  /// FrameKind::kMono; Bayer and RGB8 as FrameKind::kRgb.
+  /// FrameKind::kMono, RGB8 as FrameKind::kRgb, Bayer formats as the raw
+  /// mosaic (FrameKind::kMono) or, with `debayer`, converted to kRgb.
   enum class Pixel { kMono8, kBayerRG8, kBayerGB8, kBayerGR8, kBayerBG8, kRGB8 };
   Pixel pixel_format = Pixel::kMono8;
+  bool debayer = false;
   std::optional<double> exposure_us;  ///< Fixed exposure time (us); turns auto exposure off.
   std::optional<double> gain_db;      ///< Fixed analog gain (dB); turns auto gain off.
   /// Free run: the camera's AcquisitionFrameRate. Software trigger: the rate

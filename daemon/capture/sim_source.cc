@@ -17,54 +17,63 @@ constexpr std::size_t kNoiseTable = std::size_t{1} << 16;  // A power of two.
 constexpr std::size_t kChunk = 16;                         // Pixels composed together.
 
 // The empty cell with the mask's pixels taken from `painted` (the empty cell
-// 100 grey levels off), plus noise: `up` and `down` (kNoiseTable + kChunk
-// entries past any offset) hold its positive and negative parts, read at an
-// offset chosen per frame. One pass, 16 pixels at a time: saturating byte
-// arithmetic (SSE2) where the mask is clear, pixel by pixel where it is not.
-// About 1 ms per Full HD frame, most of it memory traffic.
-void ComposeColour(const common::ImageRgb8& empty, const common::ImageRgb8& painted,
-                   const common::ImageU8& mask, const std::vector<std::uint8_t>& up,
+// 100 grey levels off), plus noise, into `out`; images of `channels` bytes per
+// pixel (1: a Bayer mosaic, 3: RGB). `up` and `down` (kNoiseTable + 3 *
+// kChunk entries past any offset) hold the noise's positive and negative
+// parts, read at an offset chosen per frame. One pass, 16 pixels at a time:
+// saturating byte arithmetic (SSE2) where the mask is clear, pixel by pixel
+// where it is not. About 1 ms per Full HD RGB frame, most of it memory traffic.
+void ComposeColour(const std::uint8_t* empty, const std::uint8_t* painted,
+                   const common::ImageU8& mask, int channels, const std::vector<std::uint8_t>& up,
                    const std::vector<std::uint8_t>& down, std::uint64_t frame_index,
-                   common::ImageRgb8* out) {
-  if (out->width != empty.width || out->height != empty.height) {
-    *out = common::ImageRgb8(empty.width, empty.height);  // First frame only.
-  }
-  const std::size_t pixels = static_cast<std::size_t>(empty.width) * empty.height;
+                   std::uint8_t* out) {
+  const std::size_t pixels = mask.pixels.size();
+  const auto c = static_cast<std::size_t>(channels);
   // A multiplicative hash of the index: the noise differs from frame to frame.
   const std::size_t offset =
       static_cast<std::size_t>(frame_index * 0x9E3779B97F4A7C15ULL >> 40) & (kNoiseTable - 1);
   const std::uint8_t* m = mask.pixels.data();
-  const std::uint8_t* e = empty.pixels.data();
-  const std::uint8_t* fg = painted.pixels.data();
-  std::uint8_t* o = out->pixels.data();
-  // Bytes [i, i + n) of pixels, noise from the tables at j on.
+  // Bytes of pixels [first_pixel, first_pixel + n), noise from the tables at j on.
   auto pixel_by_pixel = [&](std::size_t first_pixel, std::size_t n, std::size_t j) {
-    for (std::size_t k = 0; k < 3 * n; ++k) {
-      const std::size_t i = 3 * first_pixel + k;
-      const std::uint8_t value = m[first_pixel + k / 3] != 0 ? fg[i] : e[i];
+    for (std::size_t k = 0; k < c * n; ++k) {
+      const std::size_t i = c * first_pixel + k;
+      const std::uint8_t value = m[first_pixel + k / c] != 0 ? painted[i] : empty[i];
       const int v = std::min(255, value + up[j + k]) - down[j + k];
-      o[i] = static_cast<std::uint8_t>(std::max(0, v));
+      out[i] = static_cast<std::uint8_t>(std::max(0, v));
     }
   };
   const __m128i zero = _mm_setzero_si128();
   std::size_t p = 0;
   for (; p + kChunk <= pixels; p += kChunk) {
-    const std::size_t i = 3 * p;
+    const std::size_t i = c * p;
     const std::size_t j = offset + (i & (kNoiseTable - 1));
     const __m128i people = _mm_loadu_si128(reinterpret_cast<const __m128i*>(m + p));
     if (_mm_movemask_epi8(_mm_cmpeq_epi8(people, zero)) != 0xFFFF) {
       pixel_by_pixel(p, kChunk, j);
       continue;
     }
-    for (std::size_t b = 0; b < 3 * kChunk; b += 16) {
-      const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(e + i + b));
+    for (std::size_t b = 0; b < c * kChunk; b += 16) {
+      const __m128i x = _mm_loadu_si128(reinterpret_cast<const __m128i*>(empty + i + b));
       const __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(up.data() + j + b));
       const __m128i d = _mm_loadu_si128(reinterpret_cast<const __m128i*>(down.data() + j + b));
-      _mm_storeu_si128(reinterpret_cast<__m128i*>(o + i + b),
+      _mm_storeu_si128(reinterpret_cast<__m128i*>(out + i + b),
                        _mm_subs_epu8(_mm_adds_epu8(x, a), d));
     }
   }
-  if (p < pixels) pixel_by_pixel(p, pixels - p, offset + ((3 * p) & (kNoiseTable - 1)));
+  if (p < pixels) pixel_by_pixel(p, pixels - p, offset + ((c * p) & (kNoiseTable - 1)));
+}
+
+// The Bayer mosaic of an RGB image, pattern RG (GenICam BayerRG8: red at even
+// columns of even rows, blue at odd columns of odd rows, green elsewhere).
+std::vector<std::uint8_t> BayerRgMosaic(const common::ImageRgb8& rgb) {
+  std::vector<std::uint8_t> mosaic(static_cast<std::size_t>(rgb.width) * rgb.height);
+  for (int v = 0; v < rgb.height; ++v) {
+    for (int u = 0; u < rgb.width; ++u) {
+      const int channel = (u & 1) + (v & 1);  // 0 red, 1 green, 2 blue.
+      mosaic[static_cast<std::size_t>(v) * rgb.width + u] = rgb.Pixel(u, v)[channel];
+    }
+  }
+  return mosaic;
 }
 
 }  // namespace
@@ -93,13 +102,15 @@ SimSource::SimSource(std::shared_ptr<const sim::Scene> scene, int camera_index, 
   next_ = clock_.start + std::chrono::nanoseconds(static_cast<std::int64_t>(offset_s * 1e9));
 }
 
-void SimSource::EnableColour(double empty_s) {
+void SimSource::EnableColour(double empty_s, bool bayer) {
   colour_ = true;
+  bayer_ = bayer;
   empty_s_ = empty_s;
-  sim::ColourRenderer(*scene_, camera_index_).RenderEmpty(&empty_);
+  common::ImageRgb8 empty;
+  sim::ColourRenderer(*scene_, camera_index_).RenderEmpty(&empty);
+  empty_ = bayer ? BayerRgMosaic(empty) : empty.pixels;
   painted_ = empty_;
-  for (std::uint8_t& v : painted_.pixels)
-    v = static_cast<std::uint8_t>(v < 128 ? v + 100 : v - 100);
+  for (std::uint8_t& v : painted_) v = static_cast<std::uint8_t>(v < 128 ? v + 100 : v - 100);
   // Any offset below kNoiseTable may be followed by kNoiseTable + 3 * kChunk reads.
   const std::size_t table = 2 * kNoiseTable + 3 * kChunk;
   noise_up_.assign(table, 0);
@@ -144,8 +155,23 @@ bool SimSource::Next(Frame* frame, std::chrono::milliseconds timeout) {
   } else {
     if (t < empty_s_) people_.clear();  // Resized again by the next frame's poses.
     renderer_.Render(people_, &mask_);
-    frame->kind = FrameKind::kRgb;
-    ComposeColour(empty_, painted_, mask_, noise_up_, noise_down_, index_, &frame->rgb);
+    const int width = mask_.width, height = mask_.height;
+    std::uint8_t* out = nullptr;
+    if (bayer_) {
+      frame->kind = FrameKind::kMono;  // The raw mosaic, as a Bayer camera's.
+      if (frame->grey.width != width || frame->grey.height != height) {
+        frame->grey = common::ImageU8(width, height);  // First frame only.
+      }
+      out = frame->grey.pixels.data();
+    } else {
+      frame->kind = FrameKind::kRgb;
+      if (frame->rgb.width != width || frame->rgb.height != height) {
+        frame->rgb = common::ImageRgb8(width, height);  // First frame only.
+      }
+      out = frame->rgb.pixels.data();
+    }
+    ComposeColour(empty_.data(), painted_.data(), mask_, bayer_ ? 1 : 3, noise_up_, noise_down_,
+                  index_, out);
   }
   frame->stamp_ns = clock_.epoch_ns + since_start.count();
   frame->index = index_++;

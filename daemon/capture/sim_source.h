@@ -55,7 +55,9 @@ class SimSource : public CameraSource {
   /// and conservativeness, not for the background model's realism (which
   /// `hullguard synth --colour` recordings test). People are left out for the
   /// first `empty_s` seconds: the cell is empty while the model learns it.
-  void EnableColour(double empty_s);
+  /// With `bayer`, each frame is the raw BayerRG8 mosaic of that image
+  /// (FrameKind::kMono), as a GigE colour camera delivers it.
+  void EnableColour(double empty_s, bool bayer = false);
 
  private:
   std::shared_ptr<const sim::Scene> scene_;
@@ -71,9 +73,10 @@ class SimSource : public CameraSource {
   std::chrono::duration<double> stop_after_{std::chrono::duration<double>::max()};
   // Colour mode (EnableColour): the empty cell, the noise table, scratch.
   bool colour_ = false;
+  bool bayer_ = false;
   double empty_s_ = 0.0;
-  common::ImageRgb8 empty_;
-  common::ImageRgb8 painted_;           // The empty cell 100 grey levels off: the people's colour.
+  std::vector<std::uint8_t> empty_;     // RGB, or the mosaic.
+  std::vector<std::uint8_t> painted_;   // The empty cell 100 grey levels off: the people's colour.
   std::vector<std::uint8_t> noise_up_;  // The noise where positive, 0 elsewhere.
   std::vector<std::uint8_t> noise_down_;  // Minus the noise where negative, 0 elsewhere.
   common::ImageU8 mask_;

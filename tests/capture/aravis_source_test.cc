@@ -225,7 +225,9 @@ TEST(AravisSourceTest, ConvertsRgbAndEveryBayerPattern) {
        {Pixel::kRGB8, Pixel::kBayerRG8, Pixel::kBayerGB8, Pixel::kBayerGR8, Pixel::kBayerBG8}) {
     SCOPED_TRACE(static_cast<int>(pixel));
     // Opened by address: no discovery needed.
-    AravisSource source(FakeOptions("127.0.0.1", pixel));
+    AravisOptions options = FakeOptions("127.0.0.1", pixel);
+    options.debayer = true;
+    AravisSource source(options);
     Frame frame;
     // The first frame may still have been filled in the previous format.
     ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
@@ -258,6 +260,33 @@ TEST(AravisSourceTest, ConvertsRgbAndEveryBayerPattern) {
       EXPECT_EQ(wrong, 0) << "frame " << n;
     }
     EXPECT_EQ(allocations, 0) << "Next() allocated in steady state";
+  }
+}
+
+// Without `debayer` (the default) a Bayer mosaic arrives as it was sent, one
+// byte per photosite, for the background model to compare site by site.
+TEST(AravisSourceTest, PassesBayerMosaicsOnRaw) {
+  InProcessCamera camera("HGMOSAIC");
+  ASSERT_TRUE(camera.running());
+  for (const Pixel pixel : {Pixel::kBayerRG8, Pixel::kBayerBG8}) {
+    SCOPED_TRACE(static_cast<int>(pixel));
+    AravisSource source(FakeOptions("127.0.0.1", pixel));
+    Frame frame;
+    // The first frame may still have been filled in the previous format.
+    ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
+    ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(5000)));
+    ASSERT_EQ(frame.kind, FrameKind::kMono);
+    ASSERT_EQ(frame.grey.width, kSensor);
+    ASSERT_EQ(frame.grey.height, kSensor);
+    // Row-major sites of the 2x2 block at the origin.
+    const std::array<std::uint8_t, 4> block =
+        pixel == Pixel::kBayerRG8 ? std::array<std::uint8_t, 4>{kRed, kGreen, kGreen, kBlue}
+                                  : std::array<std::uint8_t, 4>{kBlue, kGreen, kGreen, kRed};
+    long wrong = 0;
+    for (int v = 0; v < kSensor; ++v) {
+      for (int u = 0; u < kSensor; ++u) wrong += frame.grey.At(u, v) != block[(v % 2) * 2 + u % 2];
+    }
+    EXPECT_EQ(wrong, 0);
   }
 }
 

@@ -526,7 +526,9 @@ TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
 // The sim source's colour mode: the empty cell (plus noise) while the model
 // learns, then the people painted in, which the background model finds: no
 // point inside them is published free, and the rest of the cell is.
-TEST(PipelineTest, SimColourFramesGoThroughTheBackgroundModel) {
+// Sim colour frames, RGB or the raw Bayer mosaic, through the background
+// model: no point inside a person is free once the people are in.
+void SimColourFramesThroughTheBackgroundModel(bool bayer) {
   const std::shared_ptr<sim::Scene> scene = StandingScene();
   const capture::SimClock clock = capture::SimClock::Now();
   PipelineOptions options;
@@ -539,23 +541,35 @@ TEST(PipelineTest, SimColourFramesGoThroughTheBackgroundModel) {
   std::vector<capture::SimSource*> sources;
   for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
     auto source = std::make_unique<capture::SimSource>(scene, c, 30.0, clock);
-    source->EnableColour(kEmptyS);
+    source->EnableColour(kEmptyS, bayer);
     sources.push_back(source.get());
     cameras.push_back({scene->cameras[c].model, std::move(source), 150});
   }
   // What a camera delivers: colour, the empty cell within the noise at first.
   {
     capture::SimSource probe(scene, 0, 30.0, clock);
-    probe.EnableColour(kEmptyS);
+    probe.EnableColour(kEmptyS, bayer);
     capture::Frame frame;
     ASSERT_TRUE(probe.Next(&frame, 500ms));
-    ASSERT_EQ(frame.kind, capture::FrameKind::kRgb);
+    ASSERT_EQ(frame.kind, bayer ? capture::FrameKind::kMono : capture::FrameKind::kRgb);
     common::ImageRgb8 empty;
     sim::ColourRenderer(*scene, 0).RenderEmpty(&empty);
-    ASSERT_EQ(frame.rgb.pixels.size(), empty.pixels.size());
     int largest = 0;
-    for (std::size_t i = 0; i < empty.pixels.size(); ++i) {
-      largest = std::max(largest, std::abs(frame.rgb.pixels[i] - empty.pixels[i]));
+    if (bayer) {
+      // BayerRG8: red at (even, even), blue at (odd, odd), green elsewhere.
+      ASSERT_EQ(frame.grey.width, empty.width);
+      ASSERT_EQ(frame.grey.height, empty.height);
+      for (int v = 0; v < empty.height; ++v) {
+        for (int u = 0; u < empty.width; ++u) {
+          const int site = empty.Pixel(u, v)[(u & 1) + (v & 1)];
+          largest = std::max(largest, std::abs(frame.grey.At(u, v) - site));
+        }
+      }
+    } else {
+      ASSERT_EQ(frame.rgb.pixels.size(), empty.pixels.size());
+      for (std::size_t i = 0; i < empty.pixels.size(); ++i) {
+        largest = std::max(largest, std::abs(frame.rgb.pixels[i] - empty.pixels[i]));
+      }
     }
     EXPECT_LT(largest, 20) << "people or more than noise in the learning frames";
   }
@@ -573,6 +587,14 @@ TEST(PipelineTest, SimColourFramesGoThroughTheBackgroundModel) {
   pipeline.Stop();
   EXPECT_EQ(checked, 10) << "too few healthy cycles with the people in";
   EXPECT_EQ(free, 0);
+}
+
+TEST(PipelineTest, SimColourFramesGoThroughTheBackgroundModel) {
+  SimColourFramesThroughTheBackgroundModel(/*bayer=*/false);
+}
+
+TEST(PipelineTest, SimBayerMosaicsGoThroughTheBackgroundModel) {
+  SimColourFramesThroughTheBackgroundModel(/*bayer=*/true);
 }
 
 TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
