@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/imgproc.hpp>
+
 #include "scene/demo_cell.h"
 #include "silhouette/background_model.h"
 #include "sim/colour_renderer.h"
@@ -129,6 +131,42 @@ void BM_BackgroundModelFullHdMono8(benchmark::State& state) {
   RunModel(state, empty, frames, silhouette::BackgroundModelOptions{});
 }
 BENCHMARK(BM_BackgroundModelFullHdMono8)->Unit(benchmark::kMillisecond);
+
+// The BayerRG8 mosaic of the same frames, as a GigE colour camera sends them
+// and the aravis source passes them on by default: one byte per photosite.
+std::vector<common::ImageU8> Mosaics(const std::vector<common::ImageRgb8>& frames) {
+  std::vector<common::ImageU8> out;
+  for (const common::ImageRgb8& f : frames) {
+    common::ImageU8 m(f.width, f.height);
+    for (int v = 0; v < f.height; ++v) {
+      for (int u = 0; u < f.width; ++u) m.At(u, v) = f.Pixel(u, v)[(u & 1) + (v & 1)];
+    }
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
+void BM_BackgroundModelFullHdBayerRaw(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  RunModel(state, Mosaics(w.empty), Mosaics(w.frames), silhouette::BackgroundModelOptions{});
+}
+BENCHMARK(BM_BackgroundModelFullHdBayerRaw)->Unit(benchmark::kMillisecond);
+
+// What `debayer: true` adds on the capture thread: OpenCV's demosaic of a
+// Full HD BayerRG8 frame to RGB (GenICam RG is OpenCV's BG).
+void BM_DebayerFullHd(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  const std::vector<common::ImageU8> mosaics = Mosaics({w.frames[0]});
+  const common::ImageU8& m = mosaics[0];
+  common::ImageRgb8 rgb(m.width, m.height);
+  const cv::Mat mosaic(m.height, m.width, CV_8UC1, const_cast<std::uint8_t*>(m.pixels.data()));
+  cv::Mat out(m.height, m.width, CV_8UC3, rgb.pixels.data());
+  for (auto _ : state) {
+    cv::cvtColor(mosaic, out, cv::COLOR_BayerBG2RGB);
+    benchmark::ClobberMemory();
+  }
+}
+BENCHMARK(BM_DebayerFullHd)->Unit(benchmark::kMillisecond);
 
 // Learning the empty cell at start-up: the whole learning of one camera (30
 // frames by default) per iteration, reported per frame.
