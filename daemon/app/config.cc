@@ -169,6 +169,15 @@ const Field<OctreeSettings> kOctreeFields[] = {
                 "everywhere (unrefined cells read occupied) instead of whole unvisited regions. "
                 "A complete cycle gives the same result.",
      .limits = {0, 16}},
+    {.key = "max_nodes",
+     .member = &OctreeSettings::max_nodes,
+     .meaning = "Octree nodes reserved at start, 24 bytes each (memory is committed as nodes are "
+                "used), so that no cycle allocates. 0: the full tree of this depth, at most 8 Mi "
+                "(192 MiB; the paper cell at depth 10 uses about 1.5 Mi). A cycle that needs more "
+                "leaves the nodes it cannot split occupied and the status degraded (`node store "
+                "full` in the health line) until people leave space.",
+     .limits = {0, 500'000'000},
+     .default_doc = "from the depth"},
 };
 
 const Field<MotionConfig> kMotionFields[] = {

@@ -30,6 +30,7 @@ struct OctreeSettings {
   double knowledge_filter_m3 = 0.0;  ///< Drop occupied components below this volume; 0 = off.
   int publish_depth = 7;             ///< Published grid: 2^publish_depth cells per axis (<= depth).
   int coarse_first_depth = 4;        ///< Update down to this level first; 0 = off.
+  int max_nodes = 0;  ///< Octree nodes reserved at start (0: from the depth, at most 8 Mi).
 };
 
 /// How far people can move: the capture-skew compensation grows each older

@@ -21,6 +21,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.depth = config.octree.depth;
   options.boundary_coarsening = config.octree.boundary_coarsening;
   options.coarse_first_depth = config.octree.coarse_first_depth;
+  options.max_nodes = config.octree.max_nodes;
   if (config.tracking.enabled) {
     // Tracks start only from updates refined to the tracking voxel
     // (pipeline::WholeForBirths): the coarse passes reach that level first.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -90,7 +91,7 @@ const char* StateName(pipeline::CameraState s) {
 std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage* tracking) {
   const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
   // An aborted update says how far it refined: cells of that size everywhere.
-  char aborted[48] = "";
+  char aborted[96] = "";
   if (!s.complete) {
     if (s.refined_cell_m > 0.0) {
       std::snprintf(aborted, sizeof(aborted), " (aborted, refined to %.1f cm)",
@@ -98,6 +99,11 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
     } else {
       std::snprintf(aborted, sizeof(aborted), " (aborted)");
     }
+  }
+  if (s.health.unsplit_nodes > 0) {
+    const std::size_t used = std::strlen(aborted);
+    std::snprintf(aborted + used, sizeof(aborted) - used, " (node store full: %lld unsplit)",
+                  static_cast<long long>(s.health.unsplit_nodes));
   }
   char head[256];
   std::snprintf(head, sizeof(head),

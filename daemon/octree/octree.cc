@@ -70,6 +70,11 @@ struct alignas(64) Octree::WorkerScratch {
     double z[Octree::kMaxCameras][27];
   };
   ChildGrid grids[Octree::kMaxDepth + 1];
+  // Free blocks of eight nodes, and the nodes the coarse passes stopped at
+  // this update: reserved at construction for every block of the store.
+  std::vector<std::uint32_t> free_blocks;
+  std::vector<std::uint32_t> capped;
+  std::int64_t unsplit = 0;  // Nodes left pending for want of free blocks.
 };
 
 /// One update pass: the per-worker traversal of roots.
@@ -103,12 +108,15 @@ class Octree::Updater {
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
     // A refinement pass starts where every change is applied already.
     const std::uint32_t unchanged = refine_ ? kAllCameras : 0u;
-    Visit(pool, 0, cell, false, 0, 0, 0, unchanged, now_ - 1, nullptr, 0, counters);
+    Visit(pool, static_cast<std::uint32_t>(r), cell, false, 0, 0, 0, unchanged, now_ - 1, nullptr,
+          0, counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
 
  private:
+  Node& N(std::uint32_t index) const { return tree_.nodes_.get()[index]; }
+
   bool CheckAbort(Counters& k) {
     if (aborted_.load(std::memory_order_relaxed)) return true;
     bool stop = control_.abort != nullptr && control_.abort->load(std::memory_order_relaxed);
@@ -207,35 +215,42 @@ class Octree::Updater {
     return changed;
   }
 
-  void FreeChildren(RootPool& pool, std::uint32_t first) {
+  // The free list has room for every block of the store: never reallocates.
+  void FreeChildren(Counters& k, std::uint32_t first) {
     for (std::uint32_t i = 0; i < 8; ++i) {
-      const Node& child = pool.nodes[first + i];
-      if (child.state == kInner) FreeChildren(pool, child.children);
+      const Node& child = N(first + i);
+      if (child.state == kInner) FreeChildren(k, child.children);
     }
-    pool.free_blocks.push_back(first);
+    k.free_blocks.push_back(first / 8);
   }
 
-  std::uint32_t AllocateChildren(RootPool& pool) {
-    std::uint32_t first;
-    if (!pool.free_blocks.empty()) {
-      first = pool.free_blocks.back();
-      pool.free_blocks.pop_back();
+  // Eight fresh nodes, or kNoChildren when the store is used up.
+  std::uint32_t AllocateChildren(Counters& k) {
+    std::uint32_t block;
+    if (!k.free_blocks.empty()) {
+      block = k.free_blocks.back();
+      k.free_blocks.pop_back();
     } else {
-      first = static_cast<std::uint32_t>(pool.nodes.size());
-      pool.nodes.resize(pool.nodes.size() + 8);
+      // Checked first, so that a full store stops counting up.
+      if (tree_.next_block_.load(std::memory_order_relaxed) >= tree_.num_blocks_) {
+        return Node::kNoChildren;
+      }
+      block = tree_.next_block_.fetch_add(1, std::memory_order_relaxed);
+      if (block >= tree_.num_blocks_) return Node::kNoChildren;
     }
-    for (std::uint32_t i = 0; i < 8; ++i) pool.nodes[first + i] = Node{};
+    const std::uint32_t first = 8 * block;
+    for (std::uint32_t i = 0; i < 8; ++i) N(first + i) = Node{};
     return first;
   }
 
-  void MakeLeaf(RootPool& pool, std::uint32_t index, NodeState state) {
-    Node& n = pool.nodes[index];
+  void MakeLeaf(Counters& k, std::uint32_t index, NodeState state) {
+    Node& n = N(index);
     const bool had_block = n.state == kInner;
     const std::uint32_t first = n.children;
     n.children = Node::kNoChildren;
     n.state = state;
     n.flags = 0;
-    if (had_block) FreeChildren(pool, first);
+    if (had_block) FreeChildren(k, first);
   }
 
   // The eight children of a node one level above the finest, evaluated in bulk
@@ -315,7 +330,7 @@ class Octree::Updater {
       return grid != nullptr ? ChildFootprint(*grid, c, child_index) : FootprintOf(c, box);
     };
     ++k.visited;
-    Node node = pool.nodes[index];  // Copy: the pool may grow below.
+    Node node = N(index);  // Copy: the pool may grow below.
     const bool pending = (node.flags & kPending) != 0;
     // Refinement of a node the coarse pass stopped at: its own verdicts are
     // current, its subtree still needs the changes since its stamp.
@@ -352,8 +367,8 @@ class Octree::Updater {
         bool settled = false;
         if (!ChangedIn(c, footprint(c), unchanged, since, forced, &settled)) {
           // Other cameras were not checked for changes: their caches may be stale.
-          pool.nodes[index].valid = static_cast<std::uint16_t>(1u << c);
-          pool.nodes[index].flags = 0;  // Up to date, if it was pending.
+          N(index).valid = static_cast<std::uint16_t>(1u << c);
+          N(index).flags = 0;  // Up to date, if it was pending.
           return;
         }
       }
@@ -379,7 +394,7 @@ class Octree::Updater {
     }
     if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
         (node.flags & kHasPending) == 0) {
-      if (pending) pool.nodes[index].flags = 0;
+      if (pending) N(index).flags = 0;
       return;  // Subtree still exact.
     }
     if (CheckAbort(k)) {
@@ -390,7 +405,7 @@ class Octree::Updater {
       // Anything else is stale from here down.
       if (refine_ && !recompute_all && unchanged == kAllCameras) return;
       if ((node.flags & kCapped) == 0) ++k.pending;  // Capped ones are counted at the end.
-      Node& n = pool.nodes[index];
+      Node& n = N(index);
       n.flags |= kPending;
       n.stamp = recompute_all ? 0 : since;
       return;
@@ -443,21 +458,21 @@ class Octree::Updater {
       }
     }
     {
-      Node& n = pool.nodes[index];
+      Node& n = N(index);
       n.verdicts = node.verdicts;
       n.valid = node.valid;
       n.geometric = node.geometric;
       n.obstacle = obstacle;
     }
-    if (any_free) return MakeLeaf(pool, index, kFreeLeaf);
-    if (num_cameras == 0 || all_hidden) return MakeLeaf(pool, index, kOccludedLeaf);
-    if (!mask_mixed && !geometric_mixed) return MakeLeaf(pool, index, kOccupiedLeaf);
+    if (any_free) return MakeLeaf(k, index, kFreeLeaf);
+    if (num_cameras == 0 || all_hidden) return MakeLeaf(k, index, kOccludedLeaf);
+    if (!mask_mixed && !geometric_mixed) return MakeLeaf(k, index, kOccupiedLeaf);
     // Mixed only through geometry: where it stops, an occluded leaf unless some
     // camera sees foreground in it (then it may hold a person in view).
     if (!mask_mixed && (cell.level >= boundary_depth_ || cell.level >= tree_.config_.depth)) {
-      return MakeLeaf(pool, index, any_full ? kOccupiedLeaf : kOccludedLeaf);
+      return MakeLeaf(k, index, any_full ? kOccupiedLeaf : kOccludedLeaf);
     }
-    if (cell.level >= tree_.config_.depth) return MakeLeaf(pool, index, kOccupiedLeaf);
+    if (cell.level >= tree_.config_.depth) return MakeLeaf(k, index, kOccupiedLeaf);
 
     std::uint32_t child_inherit = 0;
     for (int c = 0; c < num_cameras; ++c) {
@@ -472,22 +487,30 @@ class Octree::Updater {
         child_clear |= 1u << c;
       }
     }
-    pool.nodes[index].obstacle = obstacle;
+    N(index).obstacle = obstacle;
     if (cell.level >= split_limit_) {
       // Coarse pass: refined by the next pass, its subtree kept, exact as of
       // `since` (kCoarse), or not at all (pending).
-      Node& n = pool.nodes[index];
-      n.flags = kCapped | (recompute_all ? kPending : kCoarse) | (n.flags & kHasPending);
+      Node& n = N(index);
       n.stamp = recompute_all ? 0 : since;
-      pool.capped.push_back(index);
+      if (k.capped.size() < k.capped.capacity()) {
+        n.flags = kCapped | (recompute_all ? kPending : kCoarse) | (n.flags & kHasPending);
+        k.capped.push_back(index);
+      } else {
+        // No room to list it (not seen in practice: the list holds as many
+        // entries as the store has blocks): pending at once, as
+        // FinishCoarse() would leave it if no later pass got to it.
+        n.flags = kPending | (n.flags & kHasPending);
+        n.valid = 0;
+      }
       return;
     }
     if (cell.level + 1 == tree_.config_.depth) {
       // Children at the finest level: evaluated together, stored in the node.
       const std::uint32_t packed =
           FinestChildren(pool, cell, box, child_inherit, node.verdicts, child_clear, k);
-      MakeLeaf(pool, index, kPackedInner);
-      Node& n = pool.nodes[index];
+      MakeLeaf(k, index, kPackedInner);
+      Node& n = N(index);
       n.children = packed;
       return;
     }
@@ -496,11 +519,21 @@ class Octree::Updater {
     bool child_force = recompute_all;
     std::uint32_t first = node.children;
     if (node.state != kInner) {
-      first = AllocateChildren(pool);
+      first = AllocateChildren(k);
+      if (first == Node::kNoChildren) {
+        // The store is used up: the node stays an occupied leaf, pending
+        // (recomputed whole by the next update), until blocks come free.
+        MakeLeaf(k, index, kOccupiedLeaf);
+        Node& n = N(index);
+        n.flags = kPending;
+        n.stamp = 0;
+        ++k.unsplit;
+        return;
+      }
       child_force = true;
     }
     {
-      Node& n = pool.nodes[index];
+      Node& n = N(index);
       n.children = first;
       n.state = kInner;
       n.flags = 0;
@@ -512,9 +545,9 @@ class Octree::Updater {
       const Cell child = cell.Child(i);
       Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
             child_unchanged, since, &g, static_cast<int>(i), k);
-      below |= pool.nodes[first + i].flags;
+      below |= N(first + i).flags;
     }
-    if (below != 0) pool.nodes[index].flags = kHasPending;
+    if (below != 0) N(index).flags = kHasPending;
   }
 
   Octree& tree_;
@@ -546,9 +579,30 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
     const std::size_t cells = ((std::size_t{1} << (3 * (d + 1))) - 1) / 7;
     for (RootPool& pool : roots_) pool.relations.assign(cells, 0u);
   }
-  Reset();
+  // The store: the roots, then blocks of eight, as many as max_nodes allows
+  // (by default the full tree, capped), and at least one block per root.
+  std::int64_t max_nodes = config_.max_nodes;
+  if (max_nodes <= 0) {
+    max_nodes = OctreeConfig::kDefaultMaxNodes;
+    // The full tree under the roots: 512 * (8^(d + 1) - 1) / 7, d levels below them.
+    const int below = config_.depth - kRootLevel;
+    if (3 * (below + 1) < 40) {
+      max_nodes =
+          std::min(max_nodes, kNumRoots * (((std::int64_t{1} << (3 * (below + 1))) - 1) / 7));
+    }
+  }
+  const std::int64_t blocks = std::clamp<std::int64_t>(
+      (max_nodes + 7) / 8, 2 * kNumRoots / 8, std::numeric_limits<std::uint32_t>::max() / 8);
+  num_blocks_ = static_cast<std::uint32_t>(blocks);
+  nodes_.reset(
+      static_cast<Node*>(::operator new(sizeof(Node) * 8 * static_cast<std::size_t>(blocks))));
   pool_ = std::make_unique<common::WorkerPool>(config_.num_threads);
   scratch_ = std::make_unique<WorkerScratch[]>(config_.num_threads);
+  for (int w = 0; w < config_.num_threads; ++w) {
+    scratch_[w].free_blocks.reserve(num_blocks_);
+    scratch_[w].capped.reserve(num_blocks_);
+  }
+  Reset();
   last_version_.assign(cameras_.size(), 0);
   last_id_.assign(cameras_.size(), 0);
   discontinuity_.assign(cameras_.size(), 0u);
@@ -585,9 +639,9 @@ std::int64_t Octree::FinishCoarse() {
   // Nodes the refinement did not reach missed this update's changes below
   // them: pending from now on. Their ancestors have kHasPending already.
   std::int64_t left = 0;
-  for (RootPool& pool : roots_) {
-    for (const std::uint32_t index : pool.capped) {
-      Node& n = pool.nodes[index];
+  for (int w = 0; w < pool_->num_threads(); ++w) {
+    for (const std::uint32_t index : scratch_[w].capped) {
+      Node& n = nodes_.get()[index];
       if ((n.flags & kCapped) == 0) continue;  // Refined.
       n.flags = kPending | (n.flags & kHasPending);
       // Its verdicts are newer than its subtree, whose inherited verdicts
@@ -600,13 +654,37 @@ std::int64_t Octree::FinishCoarse() {
 }
 
 void Octree::Reset() {
-  for (RootPool& pool : roots_) {
-    pool.nodes.clear();
-    pool.free_blocks.clear();
+  for (int r = 0; r < kNumRoots; ++r) {
     Node root;
     root.state = kOccupiedLeaf;
     root.flags = kPending;
-    pool.nodes.push_back(root);
+    nodes_.get()[r] = root;
+  }
+  next_block_.store(kNumRoots / 8, std::memory_order_relaxed);  // After the roots.
+  for (int w = 0; w < pool_->num_threads(); ++w) {
+    scratch_[w].free_blocks.clear();
+    scratch_[w].capped.clear();
+  }
+}
+
+void Octree::BalanceFreeBlocks() {
+  const int workers = pool_->num_threads();
+  std::size_t total = 0;
+  for (int w = 0; w < workers; ++w) total += scratch_[w].free_blocks.size();
+  const std::size_t share = total / static_cast<std::size_t>(workers);
+  // Move blocks from lists above the share to lists below it (capacity is
+  // reserved for every block: no list reallocates).
+  int poor = 0;
+  for (int rich = 0; rich < workers; ++rich) {
+    std::vector<std::uint32_t>& from = scratch_[rich].free_blocks;
+    while (from.size() > share + 1) {
+      while (poor < workers && scratch_[poor].free_blocks.size() >= share) ++poor;
+      if (poor == workers) return;
+      std::vector<std::uint32_t>& to = scratch_[poor].free_blocks;
+      const std::size_t n = std::min(from.size() - share, share - to.size());
+      to.insert(to.end(), from.end() - static_cast<std::ptrdiff_t>(n), from.end());
+      from.resize(from.size() - n);
+    }
   }
 }
 
@@ -643,7 +721,7 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
 
   for (int w = 0; w < pool_->num_threads(); ++w) {
     WorkerScratch& k = scratch_[w];
-    k.visited = k.verdicts = k.pending = 0;
+    k.visited = k.verdicts = k.pending = k.unsplit = 0;
     k.clock_countdown = 0;
   }
   // Roots are independent: whichever worker takes a root owns its pool for the pass.
@@ -658,7 +736,7 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
       config_.coarse_first_depth > 0 && config_.coarse_first_depth < config_.depth;
   UpdateStats stats;
   if (coarse_first) {
-    for (RootPool& pool : roots_) pool.capped.clear();
+    for (int w = 0; w < pool_->num_threads(); ++w) scratch_[w].capped.clear();
     // Coarse to fine: an abort leaves every part of the cell as fine as the
     // last pass that completed, or finer.
     bool aborted = run_pass(Updater::Pass::kFull, config_.coarse_first_depth);
@@ -685,7 +763,9 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     stats.nodes_visited += k.visited;
     stats.verdicts_computed += k.verdicts;
     stats.nodes_pending += k.pending;
+    stats.nodes_unsplit += k.unsplit;
   }
+  BalanceFreeBlocks();
   stats.update_ms = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
   return stats;
 }
@@ -721,10 +801,9 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
     else if (p_W[axis] > box.max[axis] && i < 7)
       ++i;
   }
-  const RootPool& pool = roots_[cell.x + 8 * cell.y + 64 * cell.z];
-  std::uint32_t index = 0;
+  std::uint32_t index = cell.x + 8 * cell.y + 64 * cell.z;  // The root's node.
   for (;;) {
-    const Node& n = pool.nodes[index];
+    const Node& n = nodes_.get()[index];
     if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
     if (n.state != kInner && n.state != kPackedInner) {
       return std::make_pair(cell, static_cast<LeafState>(n.state));
@@ -748,12 +827,12 @@ double Octree::Volume(LeafState state) const {
 }
 
 std::int64_t Octree::NumNodes() const {
-  std::int64_t n = 0;
-  for (const RootPool& pool : roots_) {
-    n += static_cast<std::int64_t>(pool.nodes.size()) -
-         8 * static_cast<std::int64_t>(pool.free_blocks.size());
+  // Blocks handed out, less those free again, and the roots.
+  std::int64_t blocks = std::min(next_block_.load(std::memory_order_relaxed), num_blocks_);
+  for (int w = 0; w < pool_->num_threads(); ++w) {
+    blocks -= static_cast<std::int64_t>(scratch_[w].free_blocks.size());
   }
-  return n;
+  return 8 * blocks - 8 * (kNumRoots / 8) + kNumRoots;
 }
 
 std::int64_t Octree::NumLeaves() const {

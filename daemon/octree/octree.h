@@ -42,6 +42,13 @@ struct OctreeConfig {
   /// it and one that aborts before is exact to the level above. The daemon
   /// sets the level of its tracking voxels.
   int key_level = 0;
+  /// Nodes the tree may hold, all roots together (0: the full tree of this
+  /// depth, at most kDefaultMaxNodes). Reserved once, at construction; pages
+  /// are touched as nodes are used. An update that needs more leaves the
+  /// nodes it cannot split pending (occupied) and counts them
+  /// (UpdateStats::nodes_unsplit): never free, never an allocation.
+  std::int64_t max_nodes = 0;
+  static constexpr std::int64_t kDefaultMaxNodes = std::int64_t{8} << 20;
 };
 
 /// State of a leaf.
@@ -93,14 +100,20 @@ struct UpdateStats {
   std::int64_t verdicts_computed = 0;  ///< Camera verdicts evaluated (quadtree queries).
   /// Nodes this update left marked pending (abort, or coarse first not refined).
   std::int64_t nodes_pending = 0;
+  /// Nodes left pending because the node storage (OctreeConfig::max_nodes)
+  /// was used up: the tree is coarser than asked there until nodes free up.
+  std::int64_t nodes_unsplit = 0;
   double update_ms = 0.0;
 };
 
 /// Conservative incremental octree (ARCHITECTURE.md, reconstruction rules).
 ///
-/// The volume is split into 512 roots; each root owns its node pool, and during
-/// an update each root belongs to exactly one worker, so pools are never shared
-/// between threads and the result is the same for any thread count. A node keeps
+/// The volume is split into 512 roots; during an update each root belongs to
+/// exactly one worker, so the result is the same for any thread count. Nodes
+/// live in one store reserved at construction: each worker takes blocks of
+/// eight from its own free list, or, when that is empty, from the never-used
+/// rest of the store (an atomic counter); the free lists are evened out after
+/// each update. Nothing is allocated per update. A node keeps
 /// its cached per-camera verdicts; an update revisits only nodes whose footprint
 /// holds a changed quadtree element in some camera (or that are pending from an
 /// aborted update). On abort, every node that needed an update and did not get
@@ -188,9 +201,6 @@ class Octree {
 
   /// Nodes of one root: nodes[0] is the root, blocks of 8 children follow.
   struct RootPool {
-    std::vector<Node> nodes;
-    std::vector<std::uint32_t> free_blocks;
-    std::vector<std::uint32_t> capped;  // Nodes the coarse pass stopped at, this update.
     /// Per cell of levels kRootLevel .. relation_level_ under this root (level
     /// by level, x fastest): its ObstacleRelation per camera, 2 bits each,
     /// filled in when first needed. The relation is static, while nodes come
@@ -205,7 +215,19 @@ class Octree {
   std::int64_t FinishCoarse();
 
   template <class Fn>
-  void VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& cell, Fn& fn) const;
+  void VisitLeaves(std::uint32_t index, const Cell& cell, Fn& fn) const;
+
+  /// Evens out the workers' free lists (after an update).
+  void BalanceFreeBlocks();
+
+  struct FreeStore {
+    void operator()(Node* p) const { ::operator delete(p); }
+  };
+  // The node store: roots at 0..511, then blocks of eight. Raw storage
+  // (Node is an implicit-lifetime aggregate), written before it is read.
+  std::unique_ptr<Node, FreeStore> nodes_;
+  std::uint32_t num_blocks_ = 0;              // Blocks of eight in the store.
+  std::atomic<std::uint32_t> next_block_{0};  // First block never handed out since Reset().
 
   /// Index of `cell` (level kRootLevel .. relation_level_) in its root's relations.
   [[nodiscard]] std::size_t RelationIndex(const Cell& cell) const;
@@ -241,9 +263,8 @@ class Octree {
 };
 
 template <class Fn>
-void Octree::VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& cell,
-                         Fn& fn) const {
-  const Node& n = pool.nodes[index];
+void Octree::VisitLeaves(std::uint32_t index, const Cell& cell, Fn& fn) const {
+  const Node& n = nodes_.get()[index];
   if ((n.flags & kPending) != 0) {
     fn(cell, LeafState::kOccupied);
     return;
@@ -260,7 +281,7 @@ void Octree::VisitLeaves(const RootPool& pool, std::uint32_t index, const Cell& 
   }
   for (std::uint32_t i = 0; i < 8; ++i) {
     const Cell child = cell.Child(i);
-    VisitLeaves(pool, n.children + i, child, fn);
+    VisitLeaves(n.children + i, child, fn);
   }
 }
 
@@ -268,7 +289,7 @@ template <class Fn>
 void Octree::ForEachLeaf(Fn&& fn) const {
   for (std::uint32_t r = 0; r < roots_.size(); ++r) {
     const Cell root{kRootLevel, r & 7, (r >> 3) & 7, r >> 6};
-    VisitLeaves(roots_[r], 0, root, fn);
+    VisitLeaves(r, root, fn);
   }
 }
 

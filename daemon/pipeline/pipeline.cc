@@ -83,6 +83,7 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
                                    options_.boundary_coarsening};
   tree_config.coarse_first_depth = options_.coarse_first_depth;
   tree_config.key_level = options_.key_level;
+  tree_config.max_nodes = options_.max_nodes;
   tree_ = std::make_unique<octree::Octree>(tree_config, std::move(views));
   const std::size_t cells = std::size_t{1} << (3 * options_.publish_depth);
   occupied_bits_.assign((cells + 63) / 64, 0);
@@ -492,7 +493,10 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
   snapshot->refined_cell_m = RefinedCellSize(options_.bounds, stats.refined_level);
   snapshot->bounds = options_.bounds;
   snapshot->depth = options_.publish_depth;
-  health.degraded = health.degraded || stats.aborted;
+  // Nodes the full store could not split read occupied: conservative, but
+  // coarser than asked.
+  health.unsplit_nodes = stats.nodes_unsplit;
+  health.degraded = health.degraded || stats.aborted || stats.nodes_unsplit > 0;
   health.octree_ms = stats.update_ms;
   health.deadline_misses = deadline_misses_;
   health.cycles = sequence_;

@@ -35,7 +35,8 @@ struct PipelineOptions {
   int depth = 9;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
-  int key_level = 0;  ///< octree::OctreeConfig::key_level.
+  int key_level = 0;           ///< octree::OctreeConfig::key_level.
+  std::int64_t max_nodes = 0;  ///< octree::OctreeConfig::max_nodes.
   int octree_threads = 2;
   double rate_hz = 30.0;
   double deadline_ms = 25.0;

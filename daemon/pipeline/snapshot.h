@@ -44,7 +44,10 @@ struct PipelineHealth {
   double silhouette_ms = 0.0;  ///< Capture stamp -> quadtree built, slowest camera this cycle.
   double skew_ms = 0.0;        ///< Newest minus oldest capture time of the frames used.
   double octree_ms = 0.0;      ///< Last octree update.
-  double cycle_ms = 0.0;       ///< Cycle start -> snapshot published.
+  /// Nodes the last update left occupied unsplit: the octree's node store
+  /// (octree.max_nodes) was full. 0 normally; the status is degraded otherwise.
+  std::int64_t unsplit_nodes = 0;
+  double cycle_ms = 0.0;              ///< Cycle start -> snapshot published.
   std::uint64_t deadline_misses = 0;  ///< Updates aborted by the deadline since start.
   std::uint64_t cycles = 0;
   /// Periods of the fixed rate that passed without a cycle since start: a

@@ -53,5 +53,46 @@ TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
   }
 }
 
+// Objects that walk into parts of the cell where the tree never had nodes
+// (new roots among them) still cost no allocation: nodes come from the store
+// reserved at construction. Only the first update is warm-up.
+TEST(OctreeAllocationTest, NoAllocationWhereObjectsHaveNeverBeen) {
+  testing::RandomSceneOptions opt;
+  opt.num_cameras = 4;
+  opt.num_objects = 2;
+  opt.num_obstacles = 1;
+  testing::RandomScene scene = testing::MakeRandomScene(21, opt);
+  std::vector<silhouette::SilhouetteQuadtree> trees;
+  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
+  for (const auto& c : scene.cameras) trees.emplace_back(c.width, c.height);
+  for (const auto& t : trees) ptrs.push_back(&t);
+  // A sweep across the cell: a tenth of its width per frame.
+  const Eigen::Vector3d extent = scene.bounds.max - scene.bounds.min;
+  const Eigen::Vector3d step(0.1 * extent.x(), 0.05 * extent.y(), 0.0);
+  std::vector<std::vector<common::ImageU8>> frames;
+  for (auto& obj : scene.objects) obj = scene::Translated(obj, -4.0 * step);
+  for (int f = 0; f < 9; ++f) {
+    frames.push_back(testing::RenderMasks(scene.cameras, scene.objects));
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
+  }
+  for (const int coarse_first : {0, 3}) {
+    OctreeConfig config{scene.bounds, 7, 2};
+    config.coarse_first_depth = coarse_first;
+    Octree tree(config, testing::MakeViews(scene.cameras, scene.obstacles));
+    long allocations = 0;
+    std::int64_t visited = 0;
+    for (std::size_t f = 0; f < frames.size(); ++f) {
+      for (std::size_t c = 0; c < trees.size(); ++c) trees[c].Build(frames[f][c].View(), 127);
+      const hg::testing::AllocationCounter counter;
+      const UpdateStats stats = tree.Update(ptrs);
+      if (f > 0) allocations += counter.count();
+      visited += stats.nodes_visited;
+      EXPECT_EQ(stats.nodes_unsplit, 0);
+    }
+    EXPECT_GT(visited, 10000) << coarse_first;
+    EXPECT_EQ(allocations, 0) << coarse_first;
+  }
+}
+
 }  // namespace
 }  // namespace hg::octree

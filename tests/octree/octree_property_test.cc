@@ -611,6 +611,55 @@ TEST_P(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, OctreeAbortTest, ::testing::Range(0, 5));
 
+// A node store too small for the scene (OctreeConfig::max_nodes): the nodes
+// that cannot be split stay occupied (pending), nothing is free that the exact
+// result keeps occupied, and once the objects leave (nodes come free) the tree
+// is exact again. With several threads, so that blocks freed by one worker
+// serve another after the free lists are evened out.
+TEST(OctreeNodeStoreTest, AFullStoreLeavesNodesOccupiedAndRecovers) {
+  RandomScene scene = SequenceScene(5);
+  const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+  Quadtrees qt(scene.cameras);
+  OctreeConfig small{scene.bounds, 6, 2};
+  OctreeConfig large = small;
+  large.max_nodes = 1 << 20;
+  Octree exact_probe(large, views);
+  qt.Build(testing::RenderMasks(scene.cameras, scene.objects));
+  exact_probe.Update(qt.ptrs);
+  // A third of what the scene needs.
+  small.max_nodes = exact_probe.NumNodes() / 3;
+  Octree tree(small, views);
+  std::mt19937_64 rng(77);
+  std::int64_t unsplit = 0;
+  for (int frame = 0; frame < 12; ++frame) {
+    const Eigen::Vector3d step(0.03 * std::sin(frame * 0.4), 0.02, 0.0);
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
+    const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
+    qt.Build(masks);
+    const UpdateStats stats = tree.Update(qt.ptrs);
+    unsplit += stats.nodes_unsplit;
+    EXPECT_LE(tree.NumNodes(), small.max_nodes + 8) << "frame " << frame;
+    Octree exact(large, views);
+    Quadtrees fresh(scene.cameras);
+    fresh.Build(masks);
+    exact.Update(fresh.ptrs);
+    ExpectFreeOnlyWhereExactIsFree(tree, exact, frame);
+    ExpectObjectsNotFree(tree, scene.objects, rng, 200);
+  }
+  EXPECT_GT(unsplit, 0) << "the store never ran out: the test proves nothing";
+  // The objects leave the cell: their nodes come free, and the tree of the
+  // empty cell fits in the store.
+  scene.objects.clear();
+  const auto empty = testing::RenderMasks(scene.cameras, scene.objects);
+  qt.Build(empty);
+  for (int i = 0; i < 3; ++i) tree.Update(qt.ptrs);
+  Octree exact(large, views);
+  Quadtrees fresh(scene.cameras);
+  fresh.Build(empty);
+  exact.Update(fresh.ptrs);
+  EXPECT_EQ(testing::Leaves(tree), testing::Leaves(exact));
+}
+
 // Another thread raises UpdateControl::abort while an update runs (as a
 // watchdog would): the update stops, leaves nothing free that the dense oracle
 // does not certify, and the next complete update equals a from-scratch build.
