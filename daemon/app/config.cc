@@ -308,7 +308,8 @@ const Field<ReplaySourceConfig> kReplayFields[] = {
     {.key = "directory",
      .member = &ReplaySourceConfig::directory,
      .meaning = "Recording folder (`hullguard record`, black box or `hullguard synth`), relative "
-                "to the config file.",
+                "to the config file. Opened at validation: its manifest must read, hold the "
+                "camera, and the camera's first frame must load at the camera block's size.",
      .required = true,
      .path = PathCheck::kDirectory},
     {.key = "camera",
@@ -1076,6 +1077,43 @@ const sim::Scene* LoadSceneOnce(Reader& r, SceneCache* scenes, const Item& scene
   return it->second ? &*it->second : nullptr;
 }
 
+/// A replay source's recording, opened as the replay will: its manifest (and
+/// frames index) must read, hold the camera and at least one frame, and the
+/// first frame must decode to the camera block's size. Errors are recorded
+/// at the `directory` key, with the recording's own file and line.
+void CheckRecording(Reader& r, const Item& directory, const ReplaySourceConfig& replay,
+                    const geometry::CameraModel& model) {
+  try {
+    const capture::RecordingCamera rec =
+        capture::ReadRecordingCamera(replay.directory, replay.camera);
+    if (rec.frames.empty()) {
+      r.Error(
+          directory.line, directory.path,
+          "recording '" + replay.directory + "' has no frames of camera '" + replay.camera + "'");
+      return;
+    }
+    capture::Frame frame;
+    std::vector<unsigned char> bytes;
+    std::string path;
+    if (!capture::LoadRecordedFrame(rec, 0, &frame, &bytes, &path)) {
+      r.Error(directory.line, directory.path,
+              "first frame of camera '" + replay.camera + "' cannot be read: " + path);
+      return;
+    }
+    const bool rgb = frame.kind == capture::FrameKind::kRgb;
+    const int w = rgb ? frame.rgb.width : frame.grey.width;
+    const int h = rgb ? frame.rgb.height : frame.grey.height;
+    if (w != model.width || h != model.height) {
+      r.Error(directory.line, directory.path,
+              "camera '" + replay.camera + "' was recorded at " + std::to_string(w) + "x" +
+                  std::to_string(h) + ", the camera block is " + std::to_string(model.width) + "x" +
+                  std::to_string(model.height) + " (" + path + ")");
+    }
+  } catch (const ConfigError& e) {
+    r.Error(directory.line, directory.path, std::string("bad recording: ") + e.what());
+  }
+}
+
 /// Relative tolerance of the comparison of a camera block with its scene's
 /// camera: of the largest entry of the matrix (at least 1), so that zeros
 /// compare absolutely.
@@ -1299,6 +1337,11 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache*
       Entries e_src;
       ReplaySourceConfig replay = ReadSource<ReplaySourceConfig>(r, source, kReplayFields, &e_src);
       if (replay.camera.empty()) replay.camera = camera.model.name;
+      const auto dir_it = e_src.find("directory");
+      if (!replay.directory.empty() && dir_it != e_src.end() &&
+          std::filesystem::is_directory(replay.directory)) {
+        CheckRecording(r, dir_it->second, replay, camera.model);
+      }
       camera.source = replay;
       break;
     }

@@ -42,12 +42,12 @@ cameras:
     look_at: [2, 2, 1]
     source: {type: sim, scene: scenes/demo_cell.yaml}
   - name: rec
-    width: 640
-    height: 480
+    width: 320
+    height: 180
     K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]
     R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
     t: [0, 0, 2]
-    source: {type: replay, directory: scenes, camera: cam7, realtime: false}
+    source: {type: replay, directory: ../tests/data/small_cell_recording, camera: cam2, realtime: false}
     timeout_ms: 500
   - name: gige
     width: 1280
@@ -210,8 +210,9 @@ TEST(ConfigTest, EverySectionReadsBack) {
   const CameraConfig& rec = c.cameras[1];
   EXPECT_EQ(rec.timeout_ms, 500);
   const auto& replay = std::get<ReplaySourceConfig>(rec.source);
-  EXPECT_EQ(replay.directory, kConfigDir + "/scenes");
-  EXPECT_EQ(replay.camera, "cam7");
+  EXPECT_TRUE(fs::equivalent(replay.directory, kSourceDir + "/tests/data/small_cell_recording"))
+      << replay.directory;
+  EXPECT_EQ(replay.camera, "cam2");
   EXPECT_FALSE(replay.realtime);
   EXPECT_EQ(TypeOf(rec.source), SourceType::kReplay);
 
@@ -308,8 +309,8 @@ const Mistake kMistakes[] = {
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, device: x}", 13,
      "cameras[0].source", "unknown key 'device'"},
     {"name: rec", "name: cam0", 14, "cameras[1].name", "duplicate camera name 'cam0'"},
-    {"directory: scenes", "directory: missing_dir", 20, "cameras[1].source.directory",
-     "no such directory"},
+    {"directory: ../tests/data/small_cell_recording", "directory: missing_dir", 20,
+     "cameras[1].source.directory", "no such directory"},
     {"realtime: false", "realtime: maybe", 20, "cameras[1].source.realtime", "true or false"},
     {"timeout_ms: 500", "timeout_ms: -5", 21, "cameras[1].timeout_ms", ">= 1"},
     {"timeout_ms: 500", "timeout: 500", 21, "cameras[1]", "unknown key 'timeout'"},
@@ -589,6 +590,53 @@ TEST(ConfigSceneTest, ASceneThatDoesNotLoadIsReportedAtTheSceneKey) {
     EXPECT_NE(r.err.find(config + ":11: cameras[0].source.scene: bad scene: "), std::string::npos)
         << r.err;
   }
+}
+
+// A replay source's recording is opened at validation: a recording without
+// the camera, with a broken manifest or without the camera's frames is
+// reported at the source's `directory` key (with the recording's own file and
+// line), and --check-config exits 2; the shipped test recording passes.
+TEST(ConfigReplayTest, TheRecordingIsOpenedAtValidation) {
+  const TempDir dir;
+  const std::string data = kSourceDir + "/tests/data";
+  fs::copy(data + "/small_cell_recording", dir.Path("rec"), fs::copy_options::recursive);
+  // Every reference to the recording (the cameras' and the obstacle mesh's) to the copy.
+  std::string config = ReadFile(data + "/small_cell_config.yaml");
+  for (std::size_t at; (at = config.find("small_cell_recording")) != std::string::npos;) {
+    config.replace(at, std::string("small_cell_recording").size(), "rec");
+  }
+  EXPECT_EQ(ErrorIn(dir, config), "");
+
+  // The first camera asks for one the recording lacks.
+  const std::string no_camera =
+      Replace(config, "directory: rec}}", "directory: rec, camera: camX}}");
+  std::string error = ErrorIn(dir, no_camera);
+  ASSERT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_NE(error.find("c.yaml:10: cameras[0].source.directory: bad recording: "),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find("manifest.yaml:10: cameras: the recording has no camera 'camX'"),
+            std::string::npos)
+      << error;
+
+  // A camera's frames are gone.
+  fs::remove_all(dir.Path("rec/masks/cam1"));
+  error = ErrorIn(dir, config);
+  ASSERT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_NE(error.find("c.yaml:12: cameras[1].source.directory: first frame of camera 'cam1' "
+                       "cannot be read: "),
+            std::string::npos)
+      << error;
+
+  // The manifest does not parse: every camera says so, and the daemon exits 2.
+  std::ofstream(dir.Path("rec/manifest.yaml")) << "garbage: [\n";
+  error = ErrorIn(dir, config);
+  EXPECT_EQ(Lines(error).size(), 3u) << error;
+  EXPECT_NE(error.find("manifest.yaml:2: malformed YAML"), std::string::npos) << error;
+  const std::string path = dir.Write("c.yaml", config);
+  const testing::ProcessResult r = testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + path);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_EQ(Lines(r.err).size(), 3u) << r.err;
 }
 
 // A scene that breaks after validation: what the daemon reads from it at
