@@ -62,10 +62,11 @@ void RunAndCount(bool colour) {
     colours.emplace_back(scene, c);
   }
   // Frames rendered before counting (the renderers are not the pipeline).
-  // The sequence plays three times, counted the third: the octree's node
-  // pools (one per root) grow until each root has held its largest subtree,
-  // so warm-up is a pass over the same motion, and the second pass repeats
-  // the jump from the last frame back to the first.
+  // The sequence plays three times, counted the third: the pooled snapshots'
+  // cell lists grow until each has held the longest list, so warm-up is a
+  // pass over the same motion, and the second pass repeats the jump from the
+  // last frame back to the first. (The octree needs none: its node store is
+  // reserved when it is made, OctreeAllocationTest.)
   constexpr int kFrames = 30;
   std::vector<std::vector<capture::Frame>> frames(kFrames);
   for (int i = 0; i < kFrames; ++i) {
