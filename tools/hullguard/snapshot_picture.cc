@@ -73,7 +73,8 @@ void DrawTracks(const std::vector<SnapshotTrack>& tracks, TopFn top, SideFn side
     const int thickness = t.occluded ? 1 : 2;
     const Eigen::Vector3d& c = t.centre_W;
     const Eigen::Vector3d& h = t.half_axes_m;
-    const std::string label = "#" + std::to_string(t.id);
+    // Appended, not "#" + ...: GCC 12 warns (-Wrestrict) about the operator+ form.
+    const std::string label = std::string("#").append(std::to_string(t.id));
     auto axes = [&](double a, double b) {
       return cv::Size(std::max(1, static_cast<int>(std::lround(a * px_per_m))),
                       std::max(1, static_cast<int>(std::lround(b * px_per_m))));
