@@ -129,10 +129,6 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
   return count;
 }
 
-/// mean += rate / gain * (frame - gain * mean), in 8.8: the background follows
-/// the frame brought back to the reference illumination. `rate_q17` is
-/// rate / gain in 1/2^17, so that the product of (d * 128) and it, high 16 bits
-/// kept, is the step in 1/256 grey levels (one 16-bit multiply-high per sample).
 // One learning frame over n samples: each mean (8.8, split into high and low
 // bytes) moves to the running average with the frame brought back to the
 // reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
@@ -165,6 +161,10 @@ HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_
   }
 }
 
+/// mean += rate / gain * (frame - gain * mean), in 8.8: the background follows
+/// the frame brought back to the reference illumination. `rate_q17` is
+/// rate / gain in 1/2^17, so that the product of (d * 128) and it, high 16 bits
+/// kept, is the step in 1/256 grey levels (one 16-bit multiply-high per sample).
 HG_VECTOR_CLONES void AdaptSpan(const std::uint8_t* __restrict frame,
                                 std::uint8_t* __restrict mean_high,
                                 std::uint8_t* __restrict mean_low, int n, std::uint16_t gain_q8,
