@@ -129,14 +129,14 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
   return count;
 }
 
-// One learning frame over n samples: each mean (8.8, split into high and low
-// bytes) moves to the running average with the frame brought back to the
-// reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
-// 2^16 / (frames averaged + 1), 0 for the first frame (the mean becomes x).
-// With `unbias_q12` > 0 the deviation of x from the new mean, in quarter
-// levels, is added up. 32-bit lanes suffice: |x - m| < 2^16 and
-// inverse_count <= 2^15 after the first frame, and (p + 2^15) >> 16 is
-// computed as ((p >> 1) + 2^14) >> 15, which is the same for every p.
+/// One learning frame over n samples: each mean (8.8, split into high and low
+/// bytes) moves to the running average with the frame brought back to the
+/// reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
+/// 2^16 / (frames averaged + 1), 0 for the first frame (the mean becomes x).
+/// With `unbias_q12` > 0 the deviation of x from the new mean, in quarter
+/// levels, is added up. 32-bit lanes suffice: |x - m| < 2^16 and
+/// inverse_count <= 2^15 after the first frame, and (p + 2^15) >> 16 is
+/// computed as ((p >> 1) + 2^14) >> 15, which is the same for every p.
 HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_t n,
                                 std::uint32_t inverse_gain, std::int32_t inverse_count,
                                 std::int32_t unbias_q12, std::uint8_t* __restrict mean_high,
