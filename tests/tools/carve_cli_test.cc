@@ -374,6 +374,21 @@ TEST_F(CarveCliTest, ExactBoundariesOnlyAddFreeSpace) {
   EXPECT_GT(JsonNumber(exact.out, "leaves"), JsonNumber(coarse.out, "leaves"));
 }
 
+// A node store too small for the hull (--max-nodes): the run still succeeds,
+// only grows the occupied volume, and says so on stderr and in the JSON.
+TEST_F(CarveCliTest, TooFewNodesLeaveCellsOccupiedAndSaySo) {
+  const ProcessResult full = Hullguard(Base() + " --json");
+  ASSERT_EQ(full.code, 0) << full.err;
+  EXPECT_EQ(JsonNumber(full.out, "unsplit_nodes"), 0.0) << full.out;
+  const ProcessResult small = Hullguard(Base() + " --json --max-nodes 2000");
+  ASSERT_EQ(small.code, 0) << small.err;
+  EXPECT_GT(JsonNumber(small.out, "unsplit_nodes"), 0.0) << small.out;
+  EXPECT_NE(small.err.find("node store was too small"), std::string::npos) << small.err;
+  EXPECT_GT(JsonNumber(small.out, "occupied_volume_m3"),
+            JsonNumber(full.out, "occupied_volume_m3"));
+  EXPECT_LT(JsonNumber(small.out, "free_volume_m3"), JsonNumber(full.out, "free_volume_m3"));
+}
+
 TEST_F(CarveCliTest, KnowledgeFilterIsOffUnlessAskedFor) {
   const Eigen::Vector3d inside = std::visit(
       [](const auto& s) -> Eigen::Vector3d {

@@ -39,9 +39,9 @@ CarveResult Carve(const CarveJob& job) {
   std::vector<octree::CameraView> views;
   views.reserve(pinholes.size());
   for (const auto& cam : pinholes) views.emplace_back(cam, job.obstacles);
-  out.tree = std::make_unique<octree::Octree>(
-      octree::OctreeConfig{job.bounds, job.depth, job.threads, job.boundary_coarsening},
-      std::move(views));
+  octree::OctreeConfig config{job.bounds, job.depth, job.threads, job.boundary_coarsening};
+  config.max_nodes = job.max_nodes;
+  out.tree = std::make_unique<octree::Octree>(config, std::move(views));
   out.setup_ms = MsSince(t0);
 
   t0 = Clock::now();

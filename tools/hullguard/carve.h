@@ -24,6 +24,7 @@ struct CarveJob {
   /// See octree::OctreeConfig::boundary_coarsening; 0 resolves view and obstacle edges exactly.
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   std::uint8_t threshold = 127;  ///< Foreground iff grey value > threshold.
+  std::int64_t max_nodes = 0;    ///< octree::OctreeConfig::max_nodes (0: from the depth).
   std::vector<geometry::TriangleMesh> obstacles;
 };
 

@@ -34,6 +34,7 @@ struct CarveFlags {
   int depth = 8;
   int threads = 1;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
+  std::int64_t max_nodes = 0;
   int threshold = 127;
   std::string obstacles;
   std::string query;
@@ -179,6 +180,7 @@ int RunCarve(const CarveFlags& f) {
   job.depth = f.depth;
   job.threads = f.threads;
   job.boundary_coarsening = std::min(f.boundary_coarsening, f.depth - octree::Octree::kRootLevel);
+  job.max_nodes = f.max_nodes;
   job.threshold = static_cast<std::uint8_t>(f.threshold);
   if (!f.obstacles.empty()) {
     // An obstacle hides what lies behind it; a file read as no obstacle at all
@@ -201,6 +203,12 @@ int RunCarve(const CarveFlags& f) {
   for (const QueryPoint& q : queries) {
     std::printf("%s %s\n", q.text.c_str(), octree::ToString(filter.StateAt(tree, q.p_W)));
   }
+  if (r.stats.nodes_unsplit > 0) {
+    std::fprintf(stderr,
+                 "hullguard carve: the octree's node store was too small: %lld nodes left "
+                 "unsplit (reported occupied, coarser than depth %d); raise --max-nodes\n",
+                 static_cast<long long>(r.stats.nodes_unsplit), f.depth);
+  }
   const double occupied = tree.Volume(octree::LeafState::kOccupied);
   const double occluded = tree.Volume(octree::LeafState::kOccluded);
   const double free_volume = tree.Volume(octree::LeafState::kFree);
@@ -210,12 +218,13 @@ int RunCarve(const CarveFlags& f) {
         "\"leaves\": %lld, \"nodes\": %lld, \"update_ms\": %.3f, \"quadtree_ms\": %.3f, "
         "\"undistort_ms\": %.3f, \"cameras\": %zu, \"depth\": %d, \"threads\": %d, "
         "\"verdicts\": %lld, \"components\": %d, \"dropped_components\": %d, "
-        "\"dropped_volume_m3\": %.9g}\n",
+        "\"dropped_volume_m3\": %.9g, \"unsplit_nodes\": %lld}\n",
         occupied, occluded, free_volume, static_cast<long long>(tree.NumLeaves()),
         static_cast<long long>(tree.NumNodes()), r.stats.update_ms, r.quadtree_ms, r.undistort_ms,
         job.cameras.size(), job.depth, job.threads,
         static_cast<long long>(r.stats.verdicts_computed), filter.components,
-        filter.dropped_components, filter.dropped_volume_m3);
+        filter.dropped_components, filter.dropped_volume_m3,
+        static_cast<long long>(r.stats.nodes_unsplit));
   } else if (f.query.empty()) {  // A query file without points prints nothing.
     std::printf(
         "occupied %.6f m^3, occluded %.6f m^3, free %.6f m^3; %lld leaves, %lld nodes; "
@@ -247,6 +256,10 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
                   "Levels above --depth at which the static edges of the cameras' views and of "
                   "obstacles stop (0: exact)")
       ->check(CLI::Range(0, 16));
+  cmd->add_option("--max-nodes", flags->max_nodes,
+                  "Octree nodes reserved (24 bytes each; 0: the full tree of the depth, at most "
+                  "8 Mi). Where they run out, cells are left occupied, and a warning says so")
+      ->check(CLI::Range(std::int64_t{0}, std::int64_t{500'000'000}));
   cmd->add_option("--threshold", flags->threshold, "Foreground iff grey value > T")
       ->check(CLI::Range(0, 254));
   cmd->add_option("--obstacles", flags->obstacles, "Static obstacles as an OBJ or STL mesh");
