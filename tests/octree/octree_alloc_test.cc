@@ -14,12 +14,27 @@
 namespace hg::octree {
 namespace {
 
-TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
+// A random scene of four cameras.
+testing::RandomScene FourCameraScene(std::uint64_t seed, int objects, int obstacles) {
   testing::RandomSceneOptions opt;
   opt.num_cameras = 4;
-  opt.num_objects = 3;
-  opt.num_obstacles = 2;
-  testing::RandomScene scene = testing::MakeRandomScene(12, opt);
+  opt.num_objects = objects;
+  opt.num_obstacles = obstacles;
+  return testing::MakeRandomScene(seed, opt);
+}
+
+// One quadtree per camera, and the pointers Octree::Update() takes.
+struct Quadtrees {
+  explicit Quadtrees(const std::vector<geometry::CameraModel>& cameras) {
+    for (const auto& c : cameras) trees.emplace_back(c.width, c.height);
+    for (const auto& t : trees) ptrs.push_back(&t);
+  }
+  std::vector<silhouette::SilhouetteQuadtree> trees;
+  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
+};
+
+TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
+  testing::RandomScene scene = FourCameraScene(12, 3, 2);
   // A looping sequence: 12 frames of moving objects, played three times.
   std::vector<std::vector<common::ImageU8>> frames;
   for (int f = 0; f < 12; ++f) {
@@ -27,10 +42,9 @@ TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
     for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
     frames.push_back(testing::RenderMasks(scene.cameras, scene.objects));
   }
-  std::vector<silhouette::SilhouetteQuadtree> trees;
-  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
-  for (const auto& c : scene.cameras) trees.emplace_back(c.width, c.height);
-  for (const auto& t : trees) ptrs.push_back(&t);
+  Quadtrees q(scene.cameras);
+  std::vector<silhouette::SilhouetteQuadtree>& trees = q.trees;
+  const std::vector<const silhouette::SilhouetteQuadtree*>& ptrs = q.ptrs;
   for (const int coarse_first : {0, 3}) {
     OctreeConfig config{scene.bounds, 7, 2};
     config.coarse_first_depth = coarse_first;
@@ -57,15 +71,8 @@ TEST(OctreeAllocationTest, NoAllocationPerFrameAfterWarmUp) {
 // (new roots among them) still cost no allocation: nodes come from the store
 // reserved at construction. Only the first update is warm-up.
 TEST(OctreeAllocationTest, NoAllocationWhereObjectsHaveNeverBeen) {
-  testing::RandomSceneOptions opt;
-  opt.num_cameras = 4;
-  opt.num_objects = 2;
-  opt.num_obstacles = 1;
-  testing::RandomScene scene = testing::MakeRandomScene(21, opt);
-  std::vector<silhouette::SilhouetteQuadtree> trees;
-  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
-  for (const auto& c : scene.cameras) trees.emplace_back(c.width, c.height);
-  for (const auto& t : trees) ptrs.push_back(&t);
+  testing::RandomScene scene = FourCameraScene(21, 2, 1);
+  Quadtrees q(scene.cameras);
   // A sweep across the cell: a tenth of its width per frame.
   const Eigen::Vector3d extent = scene.bounds.max - scene.bounds.min;
   const Eigen::Vector3d step(0.1 * extent.x(), 0.05 * extent.y(), 0.0);
@@ -82,9 +89,9 @@ TEST(OctreeAllocationTest, NoAllocationWhereObjectsHaveNeverBeen) {
     long allocations = 0;
     std::int64_t visited = 0;
     for (std::size_t f = 0; f < frames.size(); ++f) {
-      for (std::size_t c = 0; c < trees.size(); ++c) trees[c].Build(frames[f][c].View(), 127);
+      for (std::size_t c = 0; c < q.trees.size(); ++c) q.trees[c].Build(frames[f][c].View(), 127);
       const hg::testing::AllocationCounter counter;
-      const UpdateStats stats = tree.Update(ptrs);
+      const UpdateStats stats = tree.Update(q.ptrs);
       if (f > 0) allocations += counter.count();
       visited += stats.nodes_visited;
       EXPECT_EQ(stats.nodes_unsplit, 0);
