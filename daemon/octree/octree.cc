@@ -330,7 +330,7 @@ class Octree::Updater {
       return grid != nullptr ? ChildFootprint(*grid, c, child_index) : FootprintOf(c, box);
     };
     ++k.visited;
-    Node node = N(index);  // Copy: the pool may grow below.
+    Node node = N(index);  // Copy: worked on here, written back below.
     const bool pending = (node.flags & kPending) != 0;
     // Refinement of a node the coarse pass stopped at: its own verdicts are
     // current, its subtree still needs the changes since its stamp.
@@ -502,6 +502,7 @@ class Octree::Updater {
         // FinishCoarse() would leave it if no later pass got to it.
         n.flags = kPending | (n.flags & kHasPending);
         n.valid = 0;
+        ++k.pending;
       }
       return;
     }
