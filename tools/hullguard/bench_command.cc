@@ -118,6 +118,7 @@ int RunBench(const BenchFlags& f) {
   std::vector<double> refined_level;  // With a deadline: how far each update refined.
   double first_octree_ms = 0.0;
   int aborts = 0;
+  std::int64_t unsplit = 0;  // Nodes left occupied for want of node storage, all frames.
   TruthCheck truth;
   std::int64_t dense_carved = 0, dense_points = 0;
   std::vector<const common::ImageU8*> pinhole_masks(s.cameras.size());
@@ -129,6 +130,7 @@ int RunBench(const BenchFlags& f) {
     render_ms.push_back(times.render_ms);
     quadtree_ms.push_back(times.quadtree_ms);
     aborts += times.octree.aborted;
+    unsplit += times.octree.nodes_unsplit;
     // Frame 0 builds the tree from nothing; the others are incremental.
     if (frame == 0) {
       first_octree_ms = times.octree.update_ms;
@@ -172,12 +174,13 @@ int RunBench(const BenchFlags& f) {
         "\"depth\": %d, \"threads\": %d, \"deadline_ms\": %.3f,\n \"stages\": {\"render\": %s, "
         "\"quadtree\": %s, \"octree\": %s},\n \"octree_first_frame_ms\": %.3f, \"nodes\": %lld, "
         "\"leaves\": %lld, \"visited_per_frame_median\": %.0f, \"aborts\": %d, "
-        "\"truth_points\": %lld, \"truth_points_free\": %lld",
+        "\"unsplit_nodes\": %lld, \"truth_points\": %lld, \"truth_points_free\": %lld",
         s.name.c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames, f.depth, f.threads,
         f.deadline_ms, JsonSummary(render).c_str(), JsonSummary(quad).c_str(),
         JsonSummary(oct).c_str(), first_octree_ms, static_cast<long long>(tree.NumNodes()),
         static_cast<long long>(tree.NumLeaves()), Summarise(visited).median, aborts,
-        static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
+        static_cast<long long>(unsplit), static_cast<long long>(truth.points),
+        static_cast<long long>(truth.reported_free));
     if (!occupied_m3.empty()) {
       const FrameStats v = Summarise(occupied_m3);
       std::printf(", \"occupied_m3\": {\"median\": %.4f, \"p99\": %.4f, \"max\": %.4f}", v.median,
@@ -215,6 +218,10 @@ int RunBench(const BenchFlags& f) {
         "aborts %d of %d frames\n",
         static_cast<long long>(tree.NumNodes()), static_cast<long long>(tree.NumLeaves()),
         Summarise(visited).median, aborts, f.frames);
+    if (unsplit > 0) {
+      std::printf("  node store full: %lld nodes left unsplit (occupied) over the run\n",
+                  static_cast<long long>(unsplit));
+    }
     if (!occupied_m3.empty()) {
       const FrameStats v = Summarise(occupied_m3);
       std::printf("  occupied volume after the deadline (m^3): median %.3f, p99 %.3f, max %.3f\n",
