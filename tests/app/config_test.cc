@@ -254,6 +254,32 @@ TEST(ConfigTest, DemoConfigLoads) {
   EXPECT_EQ(Summary(c), "4 cameras (4 sim), depth 7, 30 Hz");
 }
 
+// Every shipped daemon config loads; the colour variants of the paper cell
+// differ from it only in what their cameras deliver.
+TEST(ConfigTest, EveryShippedConfigLoads) {
+  int loaded = 0;
+  for (const auto& entry : fs::directory_iterator(kConfigDir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    EXPECT_NO_THROW((void)LoadConfig(entry.path().string()));
+    ++loaded;
+  }
+  EXPECT_GE(loaded, 4);
+  const Config masks = LoadConfig(kConfigDir + "/paper_cell.yaml");
+  for (const char* name : {"paper_cell_bayer.yaml", "paper_cell_colour.yaml"}) {
+    const Config c = LoadConfig(kConfigDir + "/" + name);
+    ASSERT_EQ(c.cameras.size(), masks.cameras.size()) << name;
+    EXPECT_EQ(c.octree.depth, masks.octree.depth) << name;
+    EXPECT_EQ(c.timing.deadline_ms, masks.timing.deadline_ms) << name;
+    for (const CameraConfig& cam : c.cameras) {
+      const auto& sim = std::get<SimSourceConfig>(cam.source);
+      EXPECT_TRUE(std::string(name) == "paper_cell_bayer.yaml" ? sim.bayer
+                                                               : sim.colour && !sim.bayer)
+          << name << " " << cam.model.name;
+    }
+  }
+}
+
 // The coarse passes stop at the level whose cells are no larger than the
 // tracking voxel, so that an aborted cycle can still start tracks.
 TEST(ConfigTest, OctreeKeyLevelIsTheTrackingVoxel) {
