@@ -243,7 +243,8 @@ class Octree::Updater {
     return first;
   }
 
-  void MakeLeaf(Counters& k, std::uint32_t index, NodeState state) {
+  // Returns whether the leaf reads occupied.
+  bool MakeLeaf(Counters& k, std::uint32_t index, NodeState state) {
     Node& n = N(index);
     const bool had_block = n.state == kInner;
     const std::uint32_t first = n.children;
@@ -251,6 +252,26 @@ class Octree::Updater {
     n.state = state;
     n.flags = 0;
     if (had_block) FreeChildren(k, first);
+    return state == kOccupiedLeaf;
+  }
+
+  // Whether some leaf of the node's subtree reads occupied (as ForEachLeaf
+  // reports it); for an inner node, as its last refinement found.
+  static bool ReadsOccupied(const Node& n) {
+    if ((n.flags & kPending) != 0) return true;
+    switch (n.state) {
+      case kOccupiedLeaf:
+        return true;
+      case kPackedInner:
+        for (std::uint32_t i = 0; i < 8; ++i) {
+          if (PackedChild(n.children, i) == LeafState::kOccupied) return true;
+        }
+        return false;
+      case kInner:
+        return (n.flags & kHoldsOccupied) != 0;
+      default:
+        return false;
+    }
   }
 
   // The eight children of a node one level above the finest, evaluated in bulk
@@ -320,7 +341,9 @@ class Octree::Updater {
   // them over without a footprint or a quadtree query; so is `clear`, the
   // cameras for which the parent lies in front of every obstacle it overlaps.
   // `grid` is the parent's child grid, null for a root.
-  void Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force,
+  // Returns whether some leaf of the node's subtree reads occupied, as far as
+  // known (false may also mean unknown): what settle_level prunes by.
+  bool Visit(RootPool& pool, std::uint32_t index, const Cell& cell, bool force,
              std::uint32_t inherit, std::uint32_t parent_verdicts, std::uint32_t clear,
              std::uint32_t unchanged, std::uint32_t since, WorkerScratch::ChildGrid* grid,
              int child_index, Counters& k) {
@@ -369,7 +392,7 @@ class Octree::Updater {
           // Other cameras were not checked for changes: their caches may be stale.
           N(index).valid = static_cast<std::uint16_t>(1u << c);
           N(index).flags = 0;  // Up to date, if it was pending.
-          return;
+          return false;
         }
       }
     }
@@ -394,8 +417,8 @@ class Octree::Updater {
     }
     if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
         (node.flags & kHasPending) == 0) {
-      if (pending) N(index).flags = 0;
-      return;  // Subtree still exact.
+      if (pending) N(index).flags &= kHoldsOccupied;
+      return ReadsOccupied(N(index));  // Subtree still exact.
     }
     if (CheckAbort(k)) {
       // Above the nodes the coarse pass stopped at (where every change is
@@ -403,12 +426,12 @@ class Octree::Updater {
       // only nodes that are up to date: they stay as they are, and the kCoarse
       // nodes below become pending when the update ends (FinishCoarse).
       // Anything else is stale from here down.
-      if (refine_ && !recompute_all && unchanged == kAllCameras) return;
+      if (refine_ && !recompute_all && unchanged == kAllCameras) return ReadsOccupied(N(index));
       if ((node.flags & kCapped) == 0) ++k.pending;  // Capped ones are counted at the end.
       Node& n = N(index);
       n.flags |= kPending;
       n.stamp = recompute_all ? 0 : since;
-      return;
+      return true;
     }
 
     // The node's static relation to the obstacles per camera: passed down
@@ -504,7 +527,7 @@ class Octree::Updater {
         n.valid = 0;
         ++k.pending;
       }
-      return;
+      return false;  // Unknown until refined.
     }
     if (cell.level + 1 == tree_.config_.depth) {
       // Children at the finest level: evaluated together, stored in the node.
@@ -513,7 +536,7 @@ class Octree::Updater {
       MakeLeaf(k, index, kPackedInner);
       Node& n = N(index);
       n.children = packed;
-      return;
+      return ReadsOccupied(n);
     }
 
     // Mixed: split. Children of a pending node, or new children, are stale.
@@ -529,7 +552,7 @@ class Octree::Updater {
         n.flags = kPending;
         n.stamp = 0;
         ++k.unsplit;
-        return;
+        return true;
       }
       child_force = true;
     }
@@ -542,13 +565,28 @@ class Octree::Updater {
     WorkerScratch::ChildGrid& g = k.grids[cell.level];
     BeginChildGrid(g, cell, box);
     std::uint8_t below = 0;
+    bool holds = false;
+    const bool settles = tree_.config_.settle_level > 0 && cell.level >= tree_.config_.settle_level;
     for (std::uint32_t i = 0; i < 8; ++i) {
+      if (holds && settles) {
+        // A leaf of this settle-level cell reads occupied already: the rest
+        // is left unrefined, pending (occupied), recomputed whole when it is
+        // next visited.
+        Node& rest = N(first + i);
+        rest.flags = kPending | (rest.flags & kHasPending);
+        rest.stamp = 0;
+        below |= kPending;
+        continue;
+      }
       const Cell child = cell.Child(i);
-      Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
-            child_unchanged, since, &g, static_cast<int>(i), k);
-      below |= N(first + i).flags;
+      holds = Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
+                    child_unchanged, since, &g, static_cast<int>(i), k) ||
+              holds;
+      below |= N(first + i).flags & ~kHoldsOccupied;
     }
-    if (below != 0) N(index).flags = kHasPending;
+    N(index).flags =
+        static_cast<std::uint8_t>((below != 0 ? kHasPending : 0) | (holds ? kHoldsOccupied : 0));
+    return holds;
   }
 
   Octree& tree_;

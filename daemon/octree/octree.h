@@ -49,6 +49,14 @@ struct OctreeConfig {
   /// (UpdateStats::nodes_unsplit): never free, never an allocation.
   std::int64_t max_nodes = 0;
   static constexpr std::int64_t kDefaultMaxNodes = std::int64_t{8} << 20;
+  /// 0: off. Otherwise a level (the resolution of a grid the tree is read
+  /// into, such as the daemon's published grid): inside each cell of this
+  /// level, once one leaf reads occupied, the node's remaining children are
+  /// not refined but left pending (occupied). The grid cell is occupied
+  /// either way, so a grid of this level (or coarser) read from the tree is
+  /// the same as without; finer queries may read occupied where the full tree
+  /// is free (never the reverse).
+  int settle_level = 0;
 };
 
 /// State of a leaf.
@@ -198,6 +206,8 @@ class Octree {
   // kCapped: stopped at by the coarse pass (kCoarse or pending), in `capped`.
   static constexpr std::uint8_t kCoarse = 4;
   static constexpr std::uint8_t kCapped = 8;
+  // kInner only, with settle_level: some leaf below reads occupied.
+  static constexpr std::uint8_t kHoldsOccupied = 16;
 
   /// Nodes of one root: nodes[0] is the root, blocks of 8 children follow.
   struct RootPool {

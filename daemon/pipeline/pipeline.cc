@@ -84,6 +84,9 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   tree_config.coarse_first_depth = options_.coarse_first_depth;
   tree_config.key_level = options_.key_level;
   tree_config.max_nodes = options_.max_nodes;
+  // Only the published grid is read from the tree (FillCells): a cell of it
+  // is settled once a leaf inside reads occupied.
+  tree_config.settle_level = options_.publish_depth;
   tree_ = std::make_unique<octree::Octree>(tree_config, std::move(views));
   const std::size_t cells = std::size_t{1} << (3 * options_.publish_depth);
   occupied_bits_.assign((cells + 63) / 64, 0);

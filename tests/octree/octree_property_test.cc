@@ -611,6 +611,76 @@ TEST_P(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
 
 INSTANTIATE_TEST_SUITE_P(Seeds, OctreeAbortTest, ::testing::Range(0, 5));
 
+// The tree read into a grid of `level` as the daemon publishes it: a cell is
+// occupied if a leaf overlapping it reads occupied, else occluded if one reads
+// occluded, else free.
+std::vector<std::uint8_t> PublishedGrid(const Octree& tree, int level) {
+  const std::size_t n = std::size_t{1} << level;
+  std::vector<std::uint8_t> grid(n * n * n, static_cast<std::uint8_t>(LeafState::kFree));
+  tree.ForEachLeaf([&](const Cell& cell, LeafState state) {
+    if (state == LeafState::kFree) return;
+    const int shift = cell.level >= level ? cell.level - level : 0;
+    const std::uint32_t span = cell.level >= level ? 1 : 1u << (level - cell.level);
+    const std::uint32_t x0 = cell.level >= level ? cell.x >> shift : cell.x * span;
+    const std::uint32_t y0 = cell.level >= level ? cell.y >> shift : cell.y * span;
+    const std::uint32_t z0 = cell.level >= level ? cell.z >> shift : cell.z * span;
+    for (std::uint32_t z = z0; z < z0 + span; ++z) {
+      for (std::uint32_t y = y0; y < y0 + span; ++y) {
+        for (std::uint32_t x = x0; x < x0 + span; ++x) {
+          std::uint8_t& g = grid[x + n * (y + n * z)];
+          if (state == LeafState::kOccupied || g == static_cast<std::uint8_t>(LeafState::kFree)) {
+            g = static_cast<std::uint8_t>(state);
+          }
+        }
+      }
+    }
+  });
+  return grid;
+}
+
+// settle_level: a tree that stops refining a settle-level cell once a leaf in
+// it reads occupied publishes the same grid of that level as the full tree,
+// frame after frame of a moving sequence, with and without coarse first, and
+// with aborted updates in between (compared after the next complete one);
+// it never frees a point the full tree keeps, and does much less work.
+TEST(OctreeSettleTest, TheSettleLevelGridEqualsTheFullTreesAndWorkShrinks) {
+  for (const int coarse_first : {0, 3}) {
+    SCOPED_TRACE(coarse_first);
+    RandomScene scene = SequenceScene(8 + coarse_first);
+    const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+    Quadtrees qt(scene.cameras);
+    constexpr int kDepth = 7, kSettle = 5;
+    // Exact boundaries: occluded leaves down to the finest level, inside
+    // settle-level cells too, where only occupied ones may settle a cell.
+    OctreeConfig full_config{scene.bounds, kDepth, 2, /*boundary_coarsening=*/0};
+    full_config.coarse_first_depth = coarse_first;
+    OctreeConfig settle_config = full_config;
+    settle_config.settle_level = kSettle;
+    Octree full(full_config, views), settled(settle_config, views);
+    std::mt19937_64 rng(5);
+    std::int64_t visited_full = 0, visited_settled = 0;
+    int compared = 0;
+    for (int frame = 0; frame < 24; ++frame) {
+      const Eigen::Vector3d step(0.03 * std::sin(frame * 0.4), 0.025, -0.005);
+      for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
+      qt.Build(testing::RenderMasks(scene.cameras, scene.objects));
+      UpdateControl control;
+      if (frame % 5 == 3) control.node_budget = static_cast<std::int64_t>(rng() % 800);
+      const UpdateStats a = full.Update(qt.ptrs);
+      const UpdateStats b = settled.Update(qt.ptrs, control);
+      visited_full += a.nodes_visited;
+      visited_settled += b.nodes_visited;
+      ExpectObjectsNotFree(settled, scene.objects, rng, 200);
+      ExpectFreeOnlyWhereExactIsFree(settled, full, frame);
+      if (b.aborted) continue;
+      ASSERT_EQ(PublishedGrid(settled, kSettle), PublishedGrid(full, kSettle)) << "frame " << frame;
+      ++compared;
+    }
+    EXPECT_GE(compared, 18);
+    EXPECT_LT(visited_settled * 2, visited_full) << visited_settled << " of " << visited_full;
+  }
+}
+
 // A node store too small for the scene (OctreeConfig::max_nodes): the nodes
 // that cannot be split stay occupied (pending), nothing is free that the exact
 // result keeps occupied, and once the objects leave (nodes come free) the tree

@@ -30,6 +30,7 @@ struct BenchFlags {
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   int coarse_first_depth = 0;
   int key_level = 0;
+  int settle_level = 0;
   double deadline_ms = 0.0;
   std::string baseline;
   int truth_points = 2000;
@@ -89,7 +90,7 @@ int RunBench(const BenchFlags& f) {
   if (f.cameras > 0) scene.cameras.resize(static_cast<std::size_t>(f.cameras));
   const double dt = 1.0 / scene.rate_hz;
   SceneEngine engine(std::move(scene), {f.depth, f.threads, f.boundary_coarsening,
-                                        f.coarse_first_depth, f.key_level});
+                                        f.coarse_first_depth, f.key_level, f.settle_level});
   const sim::Scene& s = engine.scene();
 
   // The baseline carves the same undistorted masks and answers point queries.
@@ -264,6 +265,10 @@ void RegisterBench(CLI::App& app, int* exit_code) {
   cmd->add_option("--boundary-coarsening", flags->boundary_coarsening,
                   "Levels above --depth at which static view and obstacle edges stop")
       ->check(CLI::Range(0, 16));
+  cmd->add_option("--settle-level", flags->settle_level,
+                  "Stop refining a cell of this level once a leaf in it reads occupied (the "
+                  "daemon's publish_depth; 0: off; see octree::OctreeConfig::settle_level)")
+      ->check(CLI::Range(0, 19));
   cmd->add_option("--key-level", flags->key_level,
                   "With --coarse-first: a pass also stops at this level (the daemon uses its "
                   "tracking voxel's level; docs/reconstruction.md)")

@@ -45,6 +45,7 @@ SceneEngine::SceneEngine(sim::Scene scene, const SceneEngineOptions& options)
                               options.boundary_coarsening};
   config.coarse_first_depth = options.coarse_first_depth;
   config.key_level = options.key_level;
+  config.settle_level = options.settle_level;
   tree_ = std::make_unique<octree::Octree>(config, std::move(views));
 }
 

@@ -21,7 +21,8 @@ struct SceneEngineOptions {
   int threads = 2;
   int boundary_coarsening = octree::OctreeConfig{}.boundary_coarsening;
   int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
-  int key_level = 0;  ///< octree::OctreeConfig::key_level.
+  int key_level = 0;     ///< octree::OctreeConfig::key_level.
+  int settle_level = 0;  ///< octree::OctreeConfig::settle_level.
 };
 
 /// Wall-clock times of one frame's stages.
