@@ -788,9 +788,9 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     for (int level = config_.coarse_first_depth; !aborted && level < config_.depth;) {
       // Below the settle level a cell needs only one occupied leaf found: the
       // passes there are cheap, and a single one finishes the update.
-      const int step = level < config_.key_level                                  ? 1
+      const int step = level < config_.key_level                                   ? 1
                        : config_.settle_level > 0 && level >= config_.settle_level ? config_.depth
-                                                                                    : 2;
+                                                                                   : 2;
       const int next = std::min(level + step, config_.depth);
       aborted = run_pass(Updater::Pass::kRefine, next);
       if (!aborted) stats.refined_level = next;
