@@ -481,6 +481,52 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   fs::remove_all(top);
 }
 
+// An octree node store too small for the scene (octree.max_nodes): the
+// published grid stays conservative (no point inside a person free), and the
+// status is degraded with the unsplit nodes counted; with the default store
+// the same frames give neither.
+TEST(PipelineTest, AFullNodeStoreIsConservativeAndDegraded) {
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  std::vector<sim::BodyState> people;
+  for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
+  auto run = [&](std::int64_t max_nodes) {
+    PipelineOptions options;
+    options.bounds = scene->bounds;
+    options.depth = 7;
+    options.publish_depth = 7;
+    options.max_nodes = max_nodes;
+    std::vector<PipelineCamera> cameras;
+    for (const sim::SceneCamera& c : scene->cameras) cameras.push_back({c.model, nullptr, 150});
+    Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+    capture::Frame frame;
+    frame.kind = capture::FrameKind::kMask;
+    std::shared_ptr<const OccupancySnapshot> last;
+    for (int i = 0; i < 3; ++i) {
+      frame.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
+      frame.index = static_cast<std::uint64_t>(i);
+      for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+        sim::MaskRenderer(scene->cameras[c].model, scene->obstacles, scene->foreground_objects,
+                          scene->mask_occlusion)
+            .Render(people, &frame.grey);
+        pipeline.Feed(c, frame);
+      }
+      last = pipeline.Step(frame.stamp_ns);
+    }
+    return last;
+  };
+  const auto full = run(0);
+  const auto small = run(3000);
+  ASSERT_NE(full, nullptr);
+  ASSERT_NE(small, nullptr);
+  EXPECT_EQ(full->health.unsplit_nodes, 0);
+  EXPECT_FALSE(full->health.degraded);
+  EXPECT_GT(small->health.unsplit_nodes, 0);
+  EXPECT_TRUE(small->health.degraded);
+  EXPECT_EQ(PeoplePointsFree(*scene, *small), 0);
+  EXPECT_EQ(PeoplePointsFree(*scene, *full), 0);
+  EXPECT_GT(OccupancySnapshot::Cells(small->occupied), OccupancySnapshot::Cells(full->occupied));
+}
+
 // Two people stand motionless for a minute of simulated time, in colour
 // frames through the background model, while the light breathes by +-15 %:
 // the background model never absorbs them, so no point inside them is ever
