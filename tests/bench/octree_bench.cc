@@ -38,15 +38,23 @@ void ReportFrameTimes(benchmark::State& state, std::vector<double> ms) {
   state.counters["max_ms"] = ms.back();
 }
 
-// Incremental update, frame after frame (args: cameras, depth, threads). Each
+// Args: cameras, depth, threads, settle level (0: the full tree; otherwise
+// octree::OctreeConfig::settle_level, as the daemon runs it at its published
+// grid's level).
+octree::OctreeConfig BenchConfig(const BenchScene& s, const benchmark::State& state) {
+  octree::OctreeConfig config{s.cell.bounds, static_cast<int>(state.range(1)),
+                              static_cast<int>(state.range(2))};
+  config.settle_level = static_cast<int>(state.range(3));
+  return config;
+}
+
+// Incremental update, frame after frame (args: BenchConfig). Each
 // iteration is one frame: the quadtrees are rebuilt from the next masks
 // (untimed), then the octree is updated.
 void BM_OctreeIncremental(benchmark::State& state) {
   const int cams = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(cams, kFrames);
-  octree::Octree tree(
-      {s.cell.bounds, static_cast<int>(state.range(1)), static_cast<int>(state.range(2))},
-      BenchViews(s));
+  octree::Octree tree(BenchConfig(s, state), BenchViews(s));
   Rig rig(s);
   rig.Build(s, 0);
   tree.Update(rig.ptrs);
@@ -71,13 +79,14 @@ void BM_OctreeIncremental(benchmark::State& state) {
   ReportFrameTimes(state, ms);
 }
 BENCHMARK(BM_OctreeIncremental)
-    ->ArgNames({"cams", "depth", "threads"})
-    ->Args({8, 10, 1})
-    ->Args({8, 10, 2})
-    ->Args({4, 10, 2})
-    ->Args({8, 9, 2})
-    ->Args({8, 8, 2})
-    ->Args({8, 7, 2})
+    ->ArgNames({"cams", "depth", "threads", "settle"})
+    ->Args({8, 10, 1, 0})
+    ->Args({8, 10, 2, 0})
+    ->Args({4, 10, 2, 0})
+    ->Args({8, 9, 2, 0})
+    ->Args({8, 8, 2, 0})
+    ->Args({8, 7, 2, 0})
+    ->Args({8, 10, 2, 7})
     ->Iterations(kFrames - 1)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
@@ -87,9 +96,7 @@ BENCHMARK(BM_OctreeIncremental)
 void BM_OctreeFromScratch(benchmark::State& state) {
   const int cams = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(cams, kFrames);
-  octree::Octree tree(
-      {s.cell.bounds, static_cast<int>(state.range(1)), static_cast<int>(state.range(2))},
-      BenchViews(s));
+  octree::Octree tree(BenchConfig(s, state), BenchViews(s));
   Rig rig(s);
   int frame = 0;
   std::vector<double> ms;
@@ -107,13 +114,14 @@ void BM_OctreeFromScratch(benchmark::State& state) {
   ReportFrameTimes(state, ms);
 }
 BENCHMARK(BM_OctreeFromScratch)
-    ->ArgNames({"cams", "depth", "threads"})
-    ->Args({8, 10, 1})
-    ->Args({8, 10, 2})
-    ->Args({4, 10, 2})
-    ->Args({8, 9, 2})
-    ->Args({8, 8, 2})
-    ->Args({8, 7, 2})
+    ->ArgNames({"cams", "depth", "threads", "settle"})
+    ->Args({8, 10, 1, 0})
+    ->Args({8, 10, 2, 0})
+    ->Args({4, 10, 2, 0})
+    ->Args({8, 9, 2, 0})
+    ->Args({8, 8, 2, 0})
+    ->Args({8, 7, 2, 0})
+    ->Args({8, 10, 2, 7})
     ->Iterations(8)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
