@@ -48,6 +48,21 @@ octree::OctreeConfig BenchConfig(const BenchScene& s, const benchmark::State& st
   return config;
 }
 
+// The standard set: depth, cameras and threads varied around 8 cameras,
+// depth 10, 2 threads, and that with the daemon's settle level.
+void OctreeArgs(benchmark::internal::Benchmark* b) {
+  b->ArgNames({"cams", "depth", "threads", "settle"});
+  for (const auto& a : std::vector<std::vector<std::int64_t>>{{8, 10, 1, 0},
+                                                              {8, 10, 2, 0},
+                                                              {4, 10, 2, 0},
+                                                              {8, 9, 2, 0},
+                                                              {8, 8, 2, 0},
+                                                              {8, 7, 2, 0},
+                                                              {8, 10, 2, 7}}) {
+    b->Args(a);
+  }
+}
+
 // Incremental update, frame after frame (args: BenchConfig). Each
 // iteration is one frame: the quadtrees are rebuilt from the next masks
 // (untimed), then the octree is updated.
@@ -79,14 +94,7 @@ void BM_OctreeIncremental(benchmark::State& state) {
   ReportFrameTimes(state, ms);
 }
 BENCHMARK(BM_OctreeIncremental)
-    ->ArgNames({"cams", "depth", "threads", "settle"})
-    ->Args({8, 10, 1, 0})
-    ->Args({8, 10, 2, 0})
-    ->Args({4, 10, 2, 0})
-    ->Args({8, 9, 2, 0})
-    ->Args({8, 8, 2, 0})
-    ->Args({8, 7, 2, 0})
-    ->Args({8, 10, 2, 7})
+    ->Apply(OctreeArgs)
     ->Iterations(kFrames - 1)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
@@ -114,14 +122,7 @@ void BM_OctreeFromScratch(benchmark::State& state) {
   ReportFrameTimes(state, ms);
 }
 BENCHMARK(BM_OctreeFromScratch)
-    ->ArgNames({"cams", "depth", "threads", "settle"})
-    ->Args({8, 10, 1, 0})
-    ->Args({8, 10, 2, 0})
-    ->Args({4, 10, 2, 0})
-    ->Args({8, 9, 2, 0})
-    ->Args({8, 8, 2, 0})
-    ->Args({8, 7, 2, 0})
-    ->Args({8, 10, 2, 7})
+    ->Apply(OctreeArgs)
     ->Iterations(8)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
