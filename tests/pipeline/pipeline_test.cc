@@ -387,6 +387,13 @@ int PeoplePointsFree(const sim::Scene& scene, const OccupancySnapshot& s) {
                                         {&s.occupied, &s.occluded});
 }
 
+// The scene's cameras without sources, for lock-step Feed() and Step().
+std::vector<PipelineCamera> FedCameras(const sim::Scene& scene) {
+  std::vector<PipelineCamera> cameras;
+  for (const sim::SceneCamera& c : scene.cameras) cameras.push_back({c.model, nullptr, 150});
+  return cameras;
+}
+
 // Colour frames of a scene whose people stand still in their pose at t = 0,
 // with them or without them (the empty cell), for lock-step Feed() and Step().
 class StillColourFrames {
@@ -439,9 +446,7 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   auto make = [&](const std::string& background_dir) {
     PipelineOptions o = options;
     o.background_dir = background_dir;
-    std::vector<PipelineCamera> cameras;
-    for (const sim::SceneCamera& c : scene->cameras) cameras.push_back({c.model, nullptr, 150});
-    return std::make_unique<Pipeline>(o, std::move(cameras), std::vector<geometry::TriangleMesh>{},
+    return std::make_unique<Pipeline>(o, FedCameras(*scene), std::vector<geometry::TriangleMesh>{},
                                       nullptr);
   };
   // Feeds frames [first, first + n) with or without the people; the last snapshot.
@@ -489,26 +494,29 @@ TEST(PipelineTest, AFullNodeStoreIsConservativeAndDegraded) {
   const std::shared_ptr<sim::Scene> scene = StandingScene();
   std::vector<sim::BodyState> people;
   for (const sim::Person& p : scene->people) people.push_back(sim::EvaluatePerson(p, 0.0));
+  // The people stand still: one mask per camera serves every frame.
+  std::vector<common::ImageU8> masks(scene->cameras.size());
+  for (std::size_t c = 0; c < masks.size(); ++c) {
+    sim::MaskRenderer(scene->cameras[c].model, scene->obstacles, scene->foreground_objects,
+                      scene->mask_occlusion)
+        .Render(people, &masks[c]);
+  }
   auto run = [&](std::int64_t max_nodes) {
     PipelineOptions options;
     options.bounds = scene->bounds;
     options.depth = 7;
     options.publish_depth = 7;
     options.max_nodes = max_nodes;
-    std::vector<PipelineCamera> cameras;
-    for (const sim::SceneCamera& c : scene->cameras) cameras.push_back({c.model, nullptr, 150});
-    Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+    Pipeline pipeline(options, FedCameras(*scene), {}, nullptr);
     capture::Frame frame;
     frame.kind = capture::FrameKind::kMask;
     std::shared_ptr<const OccupancySnapshot> last;
     for (int i = 0; i < 3; ++i) {
       frame.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
       frame.index = static_cast<std::uint64_t>(i);
-      for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
-        sim::MaskRenderer(scene->cameras[c].model, scene->obstacles, scene->foreground_objects,
-                          scene->mask_occlusion)
-            .Render(people, &frame.grey);
-        pipeline.Feed(c, frame);
+      for (std::size_t c = 0; c < masks.size(); ++c) {
+        frame.grey = masks[c];
+        pipeline.Feed(static_cast<int>(c), frame);
       }
       last = pipeline.Step(frame.stamp_ns);
     }
@@ -541,9 +549,7 @@ TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
   options.depth = 6;
   options.publish_depth = 6;
   options.background.learn_frames = 20;
-  std::vector<PipelineCamera> cameras;
-  for (const sim::SceneCamera& c : scene->cameras) cameras.push_back({c.model, nullptr, 150});
-  Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+  Pipeline pipeline(options, FedCameras(*scene), {}, nullptr);
   constexpr int kLearn = 30, kStill = 60 * 30;  // Frames at 30 Hz.
   const auto points = testing::PointsInPeople(*scene, 0.0, 300, 9);
   int checked = 0, free = 0;
