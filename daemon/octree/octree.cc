@@ -765,15 +765,19 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   }
   // Roots are independent: whichever worker takes a root owns its pool for the pass.
   std::atomic<std::int64_t> spent{0};
+  UpdateStats stats;
   auto run_pass = [&](Updater::Pass pass, int split_limit) {
     Updater shared(*this, masks, control, pass, split_limit, spent);
     auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
     pool_->Run(kNumRoots, run);
+    if (!shared.aborted()) {
+      stats.level_done_ms[split_limit] =
+          std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    }
     return shared.aborted();
   };
   const bool coarse_first =
       config_.coarse_first_depth > 0 && config_.coarse_first_depth < config_.depth;
-  UpdateStats stats;
   if (coarse_first) {
     for (int w = 0; w < pool_->num_threads(); ++w) scratch_[w].capped.clear();
     // Coarse to fine: an abort leaves every part of the cell as fine as the

@@ -2,6 +2,7 @@
 /// @file
 /// The incremental conservative octree over 8x8x8 parallel roots.
 
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdint>
@@ -112,6 +113,16 @@ struct UpdateStats {
   /// was used up: the tree is coarser than asked there until nodes free up.
   std::int64_t nodes_unsplit = 0;
   double update_ms = 0.0;
+  /// When the tree was complete to each level (ms from the update's start),
+  /// indexed by level; negative for levels no pass completed at. With coarse
+  /// first, one entry per completed pass; without, config.depth alone when
+  /// the update completed. What a deadline must allow to reach a level.
+  static constexpr int kLevels = 20;
+  std::array<double, kLevels> level_done_ms = [] {
+    std::array<double, kLevels> none{};
+    none.fill(-1.0);
+    return none;
+  }();
 };
 
 /// Conservative incremental octree (ARCHITECTURE.md, reconstruction rules).
@@ -136,6 +147,7 @@ class Octree {
   /// Deepest supported tree: cell coordinates of 19 bits each pack into one
   /// 64-bit key with the level (knowledge filter).
   static constexpr int kMaxDepth = 19;
+  static_assert(UpdateStats::kLevels == kMaxDepth + 1);
 
   Octree(const OctreeConfig& config, std::vector<CameraView> cameras);
   ~Octree();

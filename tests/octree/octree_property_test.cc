@@ -887,6 +887,19 @@ TEST(OctreeCoarseFirstTest, PassesReachTheKeyLevelOneLevelAtATime) {
       control.node_budget = budget;
       const UpdateStats stats = tree.Update(qt.ptrs, control);
       (key == 0 ? without_key : with_key).insert(stats.refined_level);
+      // The passes' completion times: one for each pass completed, in order.
+      const std::set<int> passes = key == 0 ? std::set<int>{3, 5, 7} : std::set<int>{3, 4, 5, 6, 7};
+      double last = 0.0;
+      for (int level = 0; level < UpdateStats::kLevels; ++level) {
+        const double done = stats.level_done_ms[level];
+        if (passes.count(level) == 0 || level > stats.refined_level) {
+          EXPECT_LT(done, 0.0) << "level " << level << " budget " << budget;
+          continue;
+        }
+        EXPECT_GE(done, last) << "level " << level << " budget " << budget;
+        last = done;
+      }
+      EXPECT_LE(last, stats.update_ms);
     }
   }
   // Without a key level: passes 3, 5, 7. With key level 6: 3, 4, 5, 6, 7.

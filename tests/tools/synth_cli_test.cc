@@ -253,6 +253,13 @@ TEST_F(SynthCliTest, BenchReportsStagesAndTheDenseBaselineAndNoTruthPointFree) {
   EXPECT_EQ(JsonField(coarse.out, "aborts"), "0");
   EXPECT_NE(coarse.out.find("\"refined_level\": {\"median\": 6, \"min\": 6}"), std::string::npos)
       << coarse.out;
+  // The passes, 3 (coarse), 4 (key), 6, each completed by both incremental updates.
+  const std::size_t passes = coarse.out.find("\"passes\": [{\"level\": 3, \"frames\": 2, ");
+  ASSERT_NE(passes, std::string::npos) << coarse.out;
+  const std::string rest = coarse.out.substr(passes, coarse.out.find(']', passes) - passes);
+  EXPECT_NE(rest.find("{\"level\": 4, \"frames\": 2, "), std::string::npos) << rest;
+  EXPECT_NE(rest.find("{\"level\": 6, \"frames\": 2, "), std::string::npos) << rest;
+  EXPECT_EQ(rest.find("\"level\": 5"), std::string::npos) << rest;
 
   const auto bad = Hullguard("bench --scene " + Path("tiny.yaml") + " --baseline voxels:3");
   EXPECT_EQ(bad.code, 2);

@@ -117,6 +117,8 @@ int RunBench(const BenchFlags& f) {
   std::vector<double> render_ms, quadtree_ms, octree_ms, dense_ms, visited;
   std::vector<double> occupied_m3;    // With a deadline: what an abort leaves occupied.
   std::vector<double> refined_level;  // With a deadline: how far each update refined.
+  // Per level: when the incremental updates that got there were complete to it.
+  std::vector<double> level_done_ms[octree::UpdateStats::kLevels];
   double first_octree_ms = 0.0;
   int aborts = 0;
   std::int64_t unsplit = 0;  // Nodes left occupied for want of node storage, all frames.
@@ -138,6 +140,11 @@ int RunBench(const BenchFlags& f) {
     } else {
       octree_ms.push_back(times.octree.update_ms);
       visited.push_back(static_cast<double>(times.octree.nodes_visited));
+      for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
+        if (times.octree.level_done_ms[level] >= 0.0) {
+          level_done_ms[level].push_back(times.octree.level_done_ms[level]);
+        }
+      }
       if (f.deadline_ms > 0) {
         occupied_m3.push_back(engine.tree().Volume(octree::LeafState::kOccupied));
         refined_level.push_back(times.octree.refined_level);
@@ -191,6 +198,19 @@ int RunBench(const BenchFlags& f) {
       std::printf(", \"refined_level\": {\"median\": %.0f, \"min\": %.0f}", r.median,
                   *std::min_element(refined_level.begin(), refined_level.end()));
     }
+    if (f.coarse_first_depth > 0) {
+      std::printf(",\n \"passes\": [");
+      const char* sep = "";
+      for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
+        const std::vector<double>& done = level_done_ms[level];
+        if (done.empty()) continue;
+        const FrameStats d = Summarise(done);
+        std::printf("%s{\"level\": %d, \"frames\": %zu, \"median_ms\": %.3f, \"p99_ms\": %.3f}",
+                    sep, level, done.size(), d.median, d.p99);
+        sep = ", ";
+      }
+      std::printf("]");
+    }
     if (has_baseline) {
       std::printf(
           ",\n \"baseline\": {\"kind\": \"%s\", \"resolution\": %d, \"time\": %s, "
@@ -234,6 +254,19 @@ int RunBench(const BenchFlags& f) {
           f.depth, r.median,
           100.0 * pipeline::RefinedCellSize(s.bounds, static_cast<int>(r.median)), worst,
           100.0 * pipeline::RefinedCellSize(s.bounds, static_cast<int>(worst)));
+    }
+    if (f.coarse_first_depth > 0) {
+      // What a deadline must allow for each level: the passes' completion times.
+      std::printf("  coarse-first passes (incremental frames complete to a level, when):\n");
+      for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
+        const std::vector<double>& done = level_done_ms[level];
+        if (done.empty()) continue;
+        const FrameStats d = Summarise(done);
+        std::printf(
+            "    level %2d (%5.1f cm cells): %zu of %zu frames, at median %.2f ms, p99 %.2f ms\n",
+            level, 100.0 * pipeline::RefinedCellSize(s.bounds, level), done.size(),
+            octree_ms.size(), d.median, d.p99);
+      }
     }
     std::printf("  ground truth: %lld points inside people, %lld reported free\n",
                 static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
