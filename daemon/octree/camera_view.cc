@@ -50,6 +50,17 @@ ObstacleRelation RelateToObstacles(const CameraView& view, const geometry::Footp
   return ObstacleRelation::kPartial;
 }
 
+bool CertifiesFree(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
+                   const geometry::Footprint& fp, ObstacleRelation relation) {
+  if (mask == nullptr || fp.side != geometry::Footprint::Side::kInFront) return false;
+  if (relation == ObstacleRelation::kBehind || relation == ObstacleRelation::kPartial) return false;
+  if (!geometry::InsideImage(fp.rect, view.width(), view.height())) return false;
+  const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
+  if (mask->Query(clip) != silhouette::Cover::kBackground) return false;
+  return relation == ObstacleRelation::kClear || !NearObstacle(view, clip) ||
+         view.near_min().AllGreater(clip, fp.z_far);
+}
+
 Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
                  const geometry::Footprint& fp, ObstacleRelation relation, bool* geometric) {
   using Side = geometry::Footprint::Side;

@@ -303,23 +303,35 @@ class Octree::Updater {
     }
     static_assert(static_cast<int>(LeafState::kOccupied) == 1);
     if (num_mixed == 0 && inherited_full) return 0x5555u;  // Eight occupied leaves.
+    // Inside a cell of the settle level, once one child reads occupied the
+    // others are left occupied too (OctreeConfig::settle_level): recomputed
+    // with the node when a camera sees a change in it.
+    const bool settles = tree_.config_.settle_level > 0 && cell.level >= tree_.config_.settle_level;
     std::uint32_t packed = 0;
     for (int i = 0; i < 8; ++i) {
+      if (settles && (packed & 0x5555u) != 0) {
+        packed |= static_cast<std::uint32_t>(LeafState::kOccupied) << (2 * i);
+        continue;
+      }
       bool any_free = false;
       bool sees_foreground = inherited_full;  // Some camera full or mixed in its silhouette.
       for (int m = 0; m < num_mixed && !any_free; ++m) {
         const int c = mixed[m];
         const geometry::Footprint fp = ChildFootprint(g, c, i);
-        bool geometric = false;
         const ObstacleRelation relation = ((clear >> c) & 1u) != 0 ? ObstacleRelation::kClear
                                           : child_relations != nullptr
                                               ? RelationOf(c, fp, &child_relations[i])
                                               : ObstacleRelation::kUnknown;
-        const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, relation, &geometric);
         ++k.verdicts;
-        any_free = v == Verdict::kFree;
-        sees_foreground =
-            sees_foreground || v == Verdict::kFull || (v == Verdict::kMixed && !geometric);
+        if (sees_foreground) {
+          // The label is settled: only whether this camera frees the child counts.
+          any_free = CertifiesFree(tree_.cameras_[c], masks_[c], fp, relation);
+        } else {
+          bool geometric = false;
+          const Verdict v = Classify(tree_.cameras_[c], masks_[c], fp, relation, &geometric);
+          any_free = v == Verdict::kFree;
+          sees_foreground = v == Verdict::kFull || (v == Verdict::kMixed && !geometric);
+        }
         // Neighbouring children tend to be freed by the same camera: try it first.
         if (any_free) std::swap(mixed[0], mixed[m]);
       }

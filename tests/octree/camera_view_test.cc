@@ -150,8 +150,8 @@ TEST(BoxProjectorTest, FootprintEqualsIndependentCornerProjection) {
   EXPECT_GT(straddling, 100);
 }
 
-TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxes) {
-  int seen_clear = 0, seen_behind = 0, seen_partial = 0;
+TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxesAndCertifiesFreeAgrees) {
+  int seen_clear = 0, seen_behind = 0, seen_partial = 0, seen_free = 0;
   for (int seed = 0; seed < 8; ++seed) {
     testing::RandomSceneOptions opt;
     opt.num_cameras = 4;
@@ -179,6 +179,13 @@ TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxes) {
         const Verdict cached = Classify(view, &quadtree, fp, relation, &geometric_cached);
         ASSERT_EQ(direct, cached) << "seed " << seed << " camera " << c;
         ASSERT_EQ(geometric_direct, geometric_cached);
+        // The free-only test agrees with the verdict, with the relation known or not.
+        for (const ObstacleRelation r : {ObstacleRelation::kUnknown, relation}) {
+          ASSERT_EQ(CertifiesFree(view, &quadtree, fp, r), direct == Verdict::kFree)
+              << "seed " << seed << " camera " << c << " relation " << static_cast<int>(r);
+        }
+        ASSERT_FALSE(CertifiesFree(view, nullptr, fp, relation));
+        seen_free += direct == Verdict::kFree;
         seen_clear += relation == ObstacleRelation::kClear;
         seen_behind += relation == ObstacleRelation::kBehind;
         seen_partial += relation == ObstacleRelation::kPartial;
@@ -205,6 +212,7 @@ TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxes) {
   EXPECT_GT(seen_clear, 100);
   EXPECT_GT(seen_behind, 10);
   EXPECT_GT(seen_partial, 100);
+  EXPECT_GT(seen_free, 100);
 }
 
 }  // namespace
