@@ -5,6 +5,9 @@
 
 #include <algorithm>
 #include <cmath>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include <Eigen/Core>
 
@@ -41,13 +44,14 @@ struct BoxProjector {
   explicit BoxProjector(const Eigen::Matrix<double, 3, 4>& projection) : P(projection) {}
 
   /// Projects the grid of points (xs[i], ys[j], zs[k]), i, j, k < N, into
-  /// u, v (pixels; meaningful where z > 0) and z (camera depth, m), stored at
-  /// index i + N (j + N k). Every footprint is computed from such a grid, so
-  /// that a box gets bit-identical corners whether it is projected alone or
-  /// as one of the eight children of a 3x3x3 grid.
+  /// image coordinates (pixels; meaningful where z > 0), u at uv[2 n] and v at
+  /// uv[2 n + 1], and camera depth z[n] (m), for n = i + N (j + N k). Every
+  /// footprint is computed from such a grid, so that a box gets bit-identical
+  /// corners whether it is projected alone or as one of the eight children of
+  /// a 3x3x3 grid.
   template <int N>
-  void ProjectGrid(const double (&xs)[N], const double (&ys)[N], const double (&zs)[N], double* u,
-                   double* v, double* z) const {
+  void ProjectGrid(const double (&xs)[N], const double (&ys)[N], const double (&zs)[N], double* uv,
+                   double* z) const {
     double ax[3][N], ay[3][N], az[3][N];
     for (int r = 0; r < 3; ++r) {
       for (int i = 0; i < N; ++i) {
@@ -62,8 +66,8 @@ struct BoxProjector {
           const int n = i + N * (j + N * k);
           z[n] = ax[2][i] + ay[2][j] + az[2][k];
           const double inv = 1.0 / z[n];
-          u[n] = (ax[0][i] + ay[0][j] + az[0][k]) * inv;
-          v[n] = (ax[1][i] + ay[1][j] + az[1][k]) * inv;
+          uv[2 * n] = (ax[0][i] + ay[0][j] + az[0][k]) * inv;
+          uv[2 * n + 1] = (ax[1][i] + ay[1][j] + az[1][k]) * inv;
         }
       }
     }
@@ -74,16 +78,17 @@ struct BoxProjector {
   /// hull of its projected corners).
   [[nodiscard]] Footprint Project(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi) const {
     const double xs[2] = {lo.x(), hi.x()}, ys[2] = {lo.y(), hi.y()}, zs[2] = {lo.z(), hi.z()};
-    double u[8], v[8], z[8];
-    ProjectGrid<2>(xs, ys, zs, u, v, z);
-    return FromCorners<2>(u, v, z, 0, 0, 0);
+    alignas(16) double uv[16];
+    double z[8];
+    ProjectGrid<2>(xs, ys, zs, uv, z);
+    return FromCorners<2>(uv, z, 0, 0, 0);
   }
 
   /// Footprint of the box whose lowest corner is grid point (i, j, k) of a grid
   /// projected by ProjectGrid<N>.
   template <int N>
-  [[nodiscard]] static Footprint FromCorners(const double* u, const double* v, const double* z,
-                                             int i, int j, int k) {
+  [[nodiscard]] static Footprint FromCorners(const double* uv, const double* z, int i, int j,
+                                             int k) {
     const int base = i + N * (j + N * k);
     const int idx[8] = {base,         base + 1,         base + N,         base + N + 1,
                         base + N * N, base + N * N + 1, base + N * N + N, base + N * N + N + 1};
@@ -103,20 +108,53 @@ struct BoxProjector {
       f.side = Footprint::Side::kStraddling;
       return f;
     }
-    double u_min = u[idx[0]], u_max = u[idx[0]], v_min = v[idx[0]], v_max = v[idx[0]];
-    for (int c = 1; c < 8; ++c) {
-      u_min = std::min(u_min, u[idx[c]]);
-      u_max = std::max(u_max, u[idx[c]]);
-      v_min = std::min(v_min, v[idx[c]]);
-      v_max = std::max(v_max, v[idx[c]]);
-    }
     f.side = Footprint::Side::kInFront;
+#if defined(__SSE2__)
+    // u and v side by side: the same operations as below, two at a time.
+    __m128d lo = _mm_loadu_pd(uv + 2 * idx[0]);
+    __m128d hi = lo;
+    for (int c = 1; c < 8; ++c) {
+      const __m128d p = _mm_loadu_pd(uv + 2 * idx[c]);
+      lo = _mm_min_pd(p, lo);
+      hi = _mm_max_pd(p, hi);
+    }
+    const __m128d slack = _mm_set1_pd(kFootprintSlackPx);
+    int low[2], high[2];
+    PixelsOf(_mm_sub_pd(lo, slack), low);
+    PixelsOf(_mm_add_pd(hi, slack), high);
+    f.rect.u0 = low[0];
+    f.rect.v0 = low[1];
+    f.rect.u1 = high[0];
+    f.rect.v1 = high[1];
+#else
+    double u_min = uv[2 * idx[0]], u_max = u_min, v_min = uv[2 * idx[0] + 1], v_max = v_min;
+    for (int c = 1; c < 8; ++c) {
+      u_min = std::min(u_min, uv[2 * idx[c]]);
+      u_max = std::max(u_max, uv[2 * idx[c]]);
+      v_min = std::min(v_min, uv[2 * idx[c] + 1]);
+      v_max = std::max(v_max, uv[2 * idx[c] + 1]);
+    }
     f.rect.u0 = PixelOf(u_min - kFootprintSlackPx);
     f.rect.u1 = PixelOf(u_max + kFootprintSlackPx);
     f.rect.v0 = PixelOf(v_min - kFootprintSlackPx);
     f.rect.v1 = PixelOf(v_max + kFootprintSlackPx);
+#endif
     return f;
   }
+
+#if defined(__SSE2__)
+  /// PixelOf() of both halves of x (finite), into out[0] and out[1].
+  static void PixelsOf(__m128d x, int* out) {
+    __m128d y = _mm_add_pd(x, _mm_set1_pd(0.5));
+    y = _mm_min_pd(_mm_max_pd(y, _mm_set1_pd(-1e9)), _mm_set1_pd(1e9));
+    // Truncation, then one less where it rounded up (negative non-integers).
+    __m128i t = _mm_cvttpd_epi32(y);
+    const __m128d above = _mm_cmpgt_pd(_mm_cvtepi32_pd(t), y);
+    t = _mm_add_epi32(t, _mm_shuffle_epi32(_mm_castpd_si128(above), _MM_SHUFFLE(2, 0, 2, 0)));
+    out[0] = _mm_cvtsi128_si32(t);
+    out[1] = _mm_cvtsi128_si32(_mm_shuffle_epi32(t, _MM_SHUFFLE(1, 1, 1, 1)));
+  }
+#endif
 };
 
 /// Intersection of a rectangle with the image [0, width) x [0, height).

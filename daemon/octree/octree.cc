@@ -65,8 +65,7 @@ struct alignas(64) Octree::WorkerScratch {
   struct ChildGrid {
     double xs[3], ys[3], zs[3];
     std::uint32_t projected = 0;  // Cameras whose u, v, z are filled in.
-    double u[Octree::kMaxCameras][27];
-    double v[Octree::kMaxCameras][27];
+    alignas(16) double uv[Octree::kMaxCameras][2 * 27];  // u, v interleaved.
     double z[Octree::kMaxCameras][27];
   };
   ChildGrid grids[Octree::kMaxDepth + 1];
@@ -147,7 +146,7 @@ class Octree::Updater {
 
   void Project(WorkerScratch::ChildGrid& g, int c) const {
     if (((g.projected >> c) & 1u) != 0) return;
-    tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.u[c], g.v[c], g.z[c]);
+    tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.uv[c], g.z[c]);
     g.projected |= 1u << c;
   }
 
@@ -161,8 +160,8 @@ class Octree::Updater {
     if (mask == nullptr || ((clear >> c) & 1u) == 0) return false;
     Project(g, c);
     if (*std::min_element(g.z[c], g.z[c] + 27) <= geometry::kMinFrontDepth) return false;
-    const int u = geometry::PixelOf(g.u[c][13]);
-    const int v = geometry::PixelOf(g.v[c][13]);
+    const int u = geometry::PixelOf(g.uv[c][2 * 13]);
+    const int v = geometry::PixelOf(g.uv[c][2 * 13 + 1]);
     return u >= 0 && v >= 0 && u < mask->width() && v < mask->height() && mask->IsForeground(u, v);
   }
 
@@ -182,7 +181,7 @@ class Octree::Updater {
   // to FootprintOf() of the child's own box (BoxProjector::ProjectGrid).
   geometry::Footprint ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i) const {
     Project(g, c);
-    return geometry::BoxProjector::FromCorners<3>(g.u[c], g.v[c], g.z[c], i & 1, (i >> 1) & 1,
+    return geometry::BoxProjector::FromCorners<3>(g.uv[c], g.z[c], i & 1, (i >> 1) & 1,
                                                   (i >> 2) & 1);
   }
 

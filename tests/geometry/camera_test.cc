@@ -48,6 +48,15 @@ TEST(PixelOfTest, IsTheFloorOfTheShiftedCoordinate) {
   }
   for (int k = 0; k < 20000; ++k) xs.push_back(wide(rng));
   for (const double x : xs) EXPECT_EQ(PixelOf(x), expected(x)) << x;
+#if defined(__SSE2__)
+  // The two-at-a-time version that footprints use gives the same pixels.
+  for (std::size_t i = 0; i + 1 < xs.size(); ++i) {
+    int out[2];
+    BoxProjector::PixelsOf(_mm_set_pd(xs[i + 1], xs[i]), out);
+    EXPECT_EQ(out[0], expected(xs[i])) << xs[i];
+    EXPECT_EQ(out[1], expected(xs[i + 1])) << xs[i + 1];
+  }
+#endif
 }
 
 TEST(CameraModelTest, DistortNormalizedMatchesOpenCvFormula) {
