@@ -64,7 +64,7 @@ struct alignas(64) Octree::WorkerScratch {
   // being split there, projected per camera when a child first needs it.
   struct ChildGrid {
     double xs[3], ys[3], zs[3];
-    std::uint32_t projected = 0;  // Cameras whose u, v, z are filled in.
+    std::uint32_t projected = 0;                         // Cameras whose u, v, z are filled in.
     alignas(16) double uv[Octree::kMaxCameras][2 * 27];  // u, v interleaved.
     double z[Octree::kMaxCameras][27];
   };
