@@ -359,7 +359,16 @@ class Octree::Updater {
              std::uint32_t unchanged, std::uint32_t since, WorkerScratch::ChildGrid* grid,
              int child_index, Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
-    const common::Box3 box = CellBox(tree_.config_.bounds, cell);
+    // A child's box is read off its parent's grid: the same values as
+    // CellBox() (which computes every face the same way at every level).
+    common::Box3 box;
+    if (grid != nullptr) {
+      const int ix = child_index & 1, iy = (child_index >> 1) & 1, iz = (child_index >> 2) & 1;
+      box.min = {grid->xs[ix], grid->ys[iy], grid->zs[iz]};
+      box.max = {grid->xs[ix + 1], grid->ys[iy + 1], grid->zs[iz + 1]};
+    } else {
+      box = CellBox(tree_.config_.bounds, cell);
+    }
     auto footprint = [&](int c) {
       return grid != nullptr ? ChildFootprint(*grid, c, child_index) : FootprintOf(c, box);
     };
