@@ -73,13 +73,13 @@ enum class ObstacleRelation : std::uint8_t {
 /// (the box straddles the camera plane, the image border or an obstacle's
 /// depth while every footprint pixel in the image is background), not from
 /// the silhouette.
+[[nodiscard]] Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
+                               const geometry::Footprint& fp, ObstacleRelation relation,
+                               bool* geometric);
+
 /// Whether Classify() would return kFree: the same test without the look-ups
 /// that only tell the other verdicts apart.
 [[nodiscard]] bool CertifiesFree(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
                                  const geometry::Footprint& fp, ObstacleRelation relation);
-
-[[nodiscard]] Verdict Classify(const CameraView& view, const silhouette::SilhouetteQuadtree* mask,
-                               const geometry::Footprint& fp, ObstacleRelation relation,
-                               bool* geometric);
 
 }  // namespace hg::octree
