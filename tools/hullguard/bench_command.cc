@@ -171,6 +171,18 @@ int RunBench(const BenchFlags& f) {
     }
   }
 
+  // The levels the coarse-first passes completed at: frames, and when.
+  struct PassSummary {
+    int level;
+    std::size_t frames;
+    FrameStats done;
+  };
+  std::vector<PassSummary> passes;
+  for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
+    if (!level_done_ms[level].empty()) {
+      passes.push_back({level, level_done_ms[level].size(), Summarise(level_done_ms[level])});
+    }
+  }
   const FrameStats render = Summarise(render_ms), quad = Summarise(quadtree_ms),
                    oct = Summarise(octree_ms), dense_sum = Summarise(dense_ms);
   const octree::Octree& tree = engine.tree();
@@ -201,12 +213,9 @@ int RunBench(const BenchFlags& f) {
     if (f.coarse_first_depth > 0) {
       std::printf(",\n \"passes\": [");
       const char* sep = "";
-      for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
-        const std::vector<double>& done = level_done_ms[level];
-        if (done.empty()) continue;
-        const FrameStats d = Summarise(done);
+      for (const PassSummary& pass : passes) {
         std::printf("%s{\"level\": %d, \"frames\": %zu, \"median_ms\": %.3f, \"p99_ms\": %.3f}",
-                    sep, level, done.size(), d.median, d.p99);
+                    sep, pass.level, pass.frames, pass.done.median, pass.done.p99);
         sep = ", ";
       }
       std::printf("]");
@@ -258,14 +267,11 @@ int RunBench(const BenchFlags& f) {
     if (f.coarse_first_depth > 0) {
       // What a deadline must allow for each level: the passes' completion times.
       std::printf("  coarse-first passes (incremental frames complete to a level, when):\n");
-      for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
-        const std::vector<double>& done = level_done_ms[level];
-        if (done.empty()) continue;
-        const FrameStats d = Summarise(done);
+      for (const PassSummary& pass : passes) {
         std::printf(
             "    level %2d (%5.1f cm cells): %zu of %zu frames, at median %.2f ms, p99 %.2f ms\n",
-            level, 100.0 * pipeline::RefinedCellSize(s.bounds, level), done.size(),
-            octree_ms.size(), d.median, d.p99);
+            pass.level, 100.0 * pipeline::RefinedCellSize(s.bounds, pass.level), pass.frames,
+            octree_ms.size(), pass.done.median, pass.done.p99);
       }
     }
     std::printf("  ground truth: %lld points inside people, %lld reported free\n",
