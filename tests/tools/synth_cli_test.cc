@@ -260,6 +260,16 @@ TEST_F(SynthCliTest, BenchReportsStagesAndTheDenseBaselineAndNoTruthPointFree) {
   EXPECT_NE(rest.find("{\"level\": 4, \"frames\": 2, "), std::string::npos) << rest;
   EXPECT_NE(rest.find("{\"level\": 6, \"frames\": 2, "), std::string::npos) << rest;
   EXPECT_EQ(rest.find("\"level\": 5"), std::string::npos) << rest;
+  EXPECT_EQ(JsonField(coarse.out, "leaves_written_per_frame_median"), "") << coarse.out;
+
+  // --leaf-changes counts what each incremental update wrote: some leaves as
+  // the people move, never more than the tree holds.
+  const auto changes = Hullguard("bench --scene " + Path("tiny.yaml") +
+                                 " --frames 3 --start 0.5 --depth 6 --leaf-changes --json");
+  ASSERT_EQ(changes.code, 0) << changes.err;
+  const long long written = std::stoll(JsonField(changes.out, "leaves_written_per_frame_median"));
+  EXPECT_GT(written, 0) << changes.out;
+  EXPECT_LE(written, std::stoll(JsonField(changes.out, "leaves"))) << changes.out;
 
   const auto bad = Hullguard("bench --scene " + Path("tiny.yaml") + " --baseline voxels:3");
   EXPECT_EQ(bad.code, 2);

@@ -6,6 +6,8 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "common/config_error.h"
 #include "hullguard/commands.h"
@@ -15,6 +17,7 @@
 #include "hullguard/open3d_baseline.h"
 #endif
 #include "hullguard/scene_engine.h"
+#include "octree/leaf_diff.h"
 #include "pipeline/snapshot.h"
 #include "sim/scene.h"
 
@@ -35,6 +38,7 @@ struct BenchFlags {
   std::string baseline;
   int truth_points = 2000;
   int cameras = 0;
+  bool leaf_changes = false;
   bool json = false;
 };
 
@@ -115,6 +119,9 @@ int RunBench(const BenchFlags& f) {
   const bool has_baseline = static_cast<bool>(baseline_carve);
 
   std::vector<double> render_ms, quadtree_ms, octree_ms, dense_ms, visited;
+  // With --leaf-changes: per incremental frame, the leaves the update wrote.
+  std::vector<double> written;
+  std::vector<std::uint64_t> leaf_keys;
   std::vector<double> occupied_m3;    // With a deadline: what an abort leaves occupied.
   std::vector<double> refined_level;  // With a deadline: how far each update refined.
   // Per level: when the incremental updates that got there were complete to it.
@@ -130,6 +137,13 @@ int RunBench(const BenchFlags& f) {
     // The deadline counts from the start of the octree update, not of the
     // frame (rendering and quadtrees are not the octree's budget).
     const FrameTimes times = engine.Step(t, {}, f.deadline_ms);
+    if (f.leaf_changes) {
+      std::vector<std::uint64_t> keys = octree::LeafKeys(engine.tree());
+      if (frame > 0) {
+        written.push_back(static_cast<double>(octree::CountNewLeaves(leaf_keys, keys)));
+      }
+      leaf_keys = std::move(keys);
+    }
     render_ms.push_back(times.render_ms);
     quadtree_ms.push_back(times.quadtree_ms);
     aborts += times.octree.aborted;
@@ -210,6 +224,9 @@ int RunBench(const BenchFlags& f) {
       std::printf(", \"refined_level\": {\"median\": %.0f, \"min\": %.0f}", r.median,
                   *std::min_element(refined_level.begin(), refined_level.end()));
     }
+    if (!written.empty()) {
+      std::printf(", \"leaves_written_per_frame_median\": %.0f", Summarise(written).median);
+    }
     if (f.coarse_first_depth > 0) {
       std::printf(",\n \"passes\": [");
       const char* sep = "";
@@ -248,6 +265,14 @@ int RunBench(const BenchFlags& f) {
         "aborts %d of %d frames\n",
         static_cast<long long>(tree.NumNodes()), static_cast<long long>(tree.NumLeaves()),
         Summarise(visited).median, aborts, f.frames);
+    if (!written.empty()) {
+      // The floor of any incremental update: what it had to write.
+      const double median_written = Summarise(written).median;
+      std::printf(
+          "  leaves written per frame (new cell or state; median) %.0f; visited per leaf "
+          "written %.2f\n",
+          median_written, median_written > 0 ? Summarise(visited).median / median_written : 0.0);
+    }
     if (unsplit > 0) {
       std::printf("  node store full: %lld nodes left unsplit (occupied) over the run\n",
                   static_cast<long long>(unsplit));
@@ -325,6 +350,9 @@ void RegisterBench(CLI::App& app, int* exit_code) {
   cmd->add_option("--truth-points", flags->truth_points,
                   "Points sampled inside each person per frame for the ground-truth check")
       ->check(CLI::Range(0, 1000000));
+  cmd->add_flag("--leaf-changes", flags->leaf_changes,
+                "Also count the leaves each incremental update wrote (a new cell or state: "
+                "the least any incremental update must do); slow, outside the timings");
   cmd->add_flag("--json", flags->json, "Print one JSON object");
   cmd->callback([flags, exit_code] { *exit_code = RunBench(*flags); });
 }
