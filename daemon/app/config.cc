@@ -321,6 +321,23 @@ const Field<ReplaySourceConfig> kReplayFields[] = {
      .meaning = "Play frames at their recorded capture times; false delivers every frame as soon "
                 "as the capture thread asks, stamped on delivery (load tests; `hullguard replay` "
                 "is the deterministic fast replay)."},
+    {.key = "preload",
+     .member = &ReplaySourceConfig::preload,
+     .meaning = "Read and decode every frame of the camera into memory at start-up (width x "
+                "height bytes per frame, three times that for RGB; the log states the total); "
+                "frames are then delivered by a copy, without disk or decoder. For soak runs "
+                "and for load tests of the daemon's own cost."},
+    {.key = "loop",
+     .member = &ReplaySourceConfig::loop,
+     .meaning = "After the last frame play again from the frame at `loop_start_s`, for ever; "
+                "capture times go on increasing (each repetition one loop length later, the "
+                "loop length being from that frame to one frame interval after the last)."},
+    {.key = "loop_start_s",
+     .member = &ReplaySourceConfig::loop_start_s,
+     .meaning = "With `loop`: recording time (s) at which each repetition after the first "
+                "starts, so that a stretch of empty cell at the beginning, which the background "
+                "model learns from, is played once. At least two frames must follow it.",
+     .limits = {0, kInf}},
 };
 
 const Field<AravisSourceConfig> kAravisFields[] = {
@@ -1077,6 +1094,14 @@ const sim::Scene* LoadSceneOnce(Reader& r, SceneCache* scenes, const Item& scene
   return it->second ? &*it->second : nullptr;
 }
 
+/// The shortest text that reads back as `value`: a difference far beyond the
+/// sixth digit still shows.
+std::string ExactNumber(double value) {
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), value);
+  return ec == std::errc() ? std::string(buf, end) : FormatNumber(value);
+}
+
 /// A replay source's recording, opened as the replay will: its manifest (and
 /// frames index) must read, hold the camera and at least one frame, and the
 /// first frame must decode to the camera block's size. Errors are recorded
@@ -1091,6 +1116,19 @@ void CheckRecording(Reader& r, const Item& directory, const ReplaySourceConfig& 
           directory.line, directory.path,
           "recording '" + replay.directory + "' has no frames of camera '" + replay.camera + "'");
       return;
+    }
+    if (replay.loop) {
+      const auto start_ns = static_cast<std::int64_t>(std::llround(replay.loop_start_s * 1e9));
+      const auto looped = std::count_if(rec.frames.begin(), rec.frames.end(),
+                                        [&](const auto& f) { return f.time_ns >= start_ns; });
+      if (looped < 2) {
+        r.Error(directory.line, directory.path,
+                "loop_start_s " + ExactNumber(replay.loop_start_s) + " leaves " +
+                    std::to_string(looped) + " frame(s) of camera '" + replay.camera +
+                    "' to loop, at least 2 needed (its last frame is at " +
+                    ExactNumber(static_cast<double>(rec.frames.back().time_ns) * 1e-9) + " s)");
+        return;
+      }
     }
     capture::Frame frame;
     std::vector<unsigned char> bytes;
@@ -1118,14 +1156,6 @@ void CheckRecording(Reader& r, const Item& directory, const ReplaySourceConfig& 
 /// camera: of the largest entry of the matrix (at least 1), so that zeros
 /// compare absolutely.
 constexpr double kSceneCameraTolerance = 1e-9;
-
-/// The shortest text that reads back as `value`: a difference far beyond the
-/// sixth digit still shows.
-std::string ExactNumber(double value) {
-  char buf[32];
-  const auto [end, ec] = std::to_chars(buf, buf + sizeof(buf), value);
-  return ec == std::errc() ? std::string(buf, end) : FormatNumber(value);
-}
 
 /// "name[i] a here, b in the scene" for the first entry of `a` and `b` that
 /// differ by more than the tolerance; empty when none does.

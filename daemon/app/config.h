@@ -90,9 +90,12 @@ struct SimSourceConfig {
 
 /// Frames played back from a recording.
 struct ReplaySourceConfig {
-  std::string directory;  ///< Recording folder, resolved against the config file's folder.
-  std::string camera;     ///< Camera in the recording; the loader fills in the camera's name.
-  bool realtime = true;   ///< Pace frames by their timestamps (false: as fast as consumed).
+  std::string directory;      ///< Recording folder, resolved against the config file's folder.
+  std::string camera;         ///< Camera in the recording; the loader fills in the camera's name.
+  bool realtime = true;       ///< Pace frames by their timestamps (false: as fast as consumed).
+  bool preload = false;       ///< capture::ReplayOptions::preload.
+  bool loop = false;          ///< capture::ReplayOptions::loop.
+  double loop_start_s = 0.0;  ///< capture::ReplayOptions::loop_start_s.
 };
 
 /// A GigE Vision / USB3 Vision camera through Aravis. Unset optionals keep the

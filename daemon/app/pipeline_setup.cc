@@ -11,6 +11,7 @@
 #include "capture/replay_source.h"
 #include "capture/v4l2_source.h"
 #include "common/config_error.h"
+#include "common/log.h"
 #include "sim/scene.h"
 
 namespace hg::app {
@@ -99,7 +100,16 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
     if (const auto* replay = std::get_if<ReplaySourceConfig>(&c.source)) {
       auto source = std::make_unique<capture::ReplaySource>(
           std::move(*recordings[i]), clock,
-          replay->realtime ? capture::ReplayPacing::kRealtime : capture::ReplayPacing::kFast);
+          capture::ReplayOptions{.pacing = replay->realtime ? capture::ReplayPacing::kRealtime
+                                                            : capture::ReplayPacing::kFast,
+                                 .preload = replay->preload,
+                                 .loop = replay->loop,
+                                 .loop_start_s = replay->loop_start_s});
+      if (replay->preload) {
+        log::Info("camera '{}': {} frames of '{}' preloaded, {:.0f} MB", c.model.name,
+                  source->frames(), replay->directory,
+                  static_cast<double>(source->preloaded_bytes()) / 1e6);
+      }
       cameras.push_back({c.model, std::move(source), c.timeout_ms});
       continue;
     }

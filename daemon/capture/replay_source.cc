@@ -1,20 +1,105 @@
 #include "capture/replay_source.h"
 
 #include <algorithm>
+#include <cmath>
 #include <thread>
+
+#include "common/config_error.h"
 
 namespace hg::capture {
 
-ReplaySource::ReplaySource(RecordingCamera recording, SimClock clock, ReplayPacing pacing)
-    : recording_(std::move(recording)), clock_(clock), pacing_(pacing) {}
-
-std::chrono::steady_clock::time_point ReplaySource::Due(int index) const {
-  return clock_.start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                            std::chrono::nanoseconds(recording_.frames[index].time_ns));
+ReplaySource::ReplaySource(RecordingCamera recording, SimClock clock, const ReplayOptions& options)
+    : recording_(std::move(recording)), clock_(clock), pacing_(options.pacing) {
+  const int count = frames();
+  if (options.loop && count > 0) {
+    const auto& f = recording_.frames;
+    const auto start_ns = static_cast<std::int64_t>(std::llround(options.loop_start_s * 1e9));
+    loop_first_ = static_cast<int>(
+        std::find_if(f.begin(), f.end(),
+                     [&](const RecordedFrame& r) { return r.time_ns >= start_ns; }) -
+        f.begin());
+    if (loop_first_ >= count - 1) {
+      throw common::ConfigError(
+          "replay of '" + recording_.directory + "', camera '" + recording_.camera +
+          "': loop_start_s " + std::to_string(options.loop_start_s) +
+          " leaves fewer than two frames to loop (the last frame is at " +
+          std::to_string(static_cast<double>(f.back().time_ns) * 1e-9) + " s)");
+    }
+    // One frame interval after the last frame, the loop's first frame again.
+    const std::int64_t interval =
+        (f[count - 1].time_ns - f[loop_first_].time_ns) / (count - 1 - loop_first_);
+    loop_period_ns_ = f[count - 1].time_ns - f[loop_first_].time_ns + interval;
+    std::uint64_t last_index = 0;
+    for (const RecordedFrame& r : f) last_index = std::max(last_index, r.source_index);
+    index_stride_ = last_index + 1;
+    loop_ = true;
+  }
+  if (options.preload) {
+    preloaded_.resize(static_cast<std::size_t>(count));
+    loaded_.assign(static_cast<std::size_t>(count), false);
+    for (int i = 0; i < count; ++i) {
+      Frame& frame = preloaded_[static_cast<std::size_t>(i)];
+      if (!LoadRecordedFrame(recording_, static_cast<std::size_t>(i), &frame, &file_bytes_,
+                             &path_)) {
+        frame = Frame{};  // Counted when it comes round.
+        continue;
+      }
+      loaded_[static_cast<std::size_t>(i)] = true;
+      preloaded_bytes_ += frame.grey.pixels.size() + frame.rgb.pixels.size();
+    }
+    file_bytes_ = {};
+  }
 }
 
-std::int64_t ReplaySource::StampOf(int index) const {
-  return clock_.epoch_ns + recording_.frames[index].time_ns;
+int ReplaySource::FrameAt(std::int64_t n) const {
+  const int count = frames();
+  if (!loop_ || n < count) return static_cast<int>(n);
+  return loop_first_ + static_cast<int>((n - count) % (count - loop_first_));
+}
+
+std::int64_t ReplaySource::OffsetNs(std::int64_t n) const {
+  const int count = frames();
+  if (!loop_ || n < count) return 0;
+  return (1 + (n - count) / (count - loop_first_)) * loop_period_ns_;
+}
+
+std::chrono::steady_clock::time_point ReplaySource::Due(std::int64_t n) const {
+  return clock_.start +
+         std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+             std::chrono::nanoseconds(recording_.frames[FrameAt(n)].time_ns + OffsetNs(n)));
+}
+
+std::int64_t ReplaySource::StampOf(std::int64_t n) const {
+  return clock_.epoch_ns + recording_.frames[FrameAt(n)].time_ns + OffsetNs(n);
+}
+
+bool ReplaySource::Load(std::int64_t n, Frame* frame) {
+  const int i = FrameAt(n);
+  bool ok;
+  if (!preloaded_.empty()) {
+    ok = loaded_[static_cast<std::size_t>(i)];
+    if (ok) {
+      // Copy-assignment keeps the destination's buffers: no allocation once
+      // they have the size.
+      const Frame& stored = preloaded_[static_cast<std::size_t>(i)];
+      frame->kind = stored.kind;
+      frame->grey = stored.grey;
+      frame->rgb = stored.rgb;
+      frame->device_stamp_ns = stored.device_stamp_ns;
+    }
+  } else {
+    ok = LoadRecordedFrame(recording_, static_cast<std::size_t>(i), frame, &file_bytes_, &path_);
+  }
+  if (!ok) {
+    corrupt_.fetch_add(1, std::memory_order_relaxed);
+    return false;
+  }
+  const std::uint64_t repetition =
+      loop_ && n >= frames()
+          ? 1 + static_cast<std::uint64_t>((n - frames()) / (frames() - loop_first_))
+          : 0;
+  frame->index = recording_.frames[i].source_index + repetition * index_stride_;
+  return true;
 }
 
 bool ReplaySource::ReadFrame(int index, Frame* frame) {
@@ -31,52 +116,45 @@ bool ReplaySource::ReadFrame(int index, Frame* frame) {
 bool ReplaySource::Next(Frame* frame, std::chrono::milliseconds timeout) {
   using Clock = std::chrono::steady_clock;
   const Clock::time_point give_up = Clock::now() + timeout;
-  const int count = frames();
+  if (frames() == 0) {
+    std::this_thread::sleep_until(give_up);
+    return false;
+  }
   if (pacing_ == ReplayPacing::kFast) {
     if (stopped_.load()) return false;
-    if (next_index_ >= count) {
+    if (Ended(next_)) {
       // The recording ended: the camera falls silent.
       std::this_thread::sleep_until(give_up);
       return false;
     }
-    const int index = next_index_++;
-    if (!LoadRecordedFrame(recording_, static_cast<std::size_t>(index), frame, &file_bytes_,
-                           &path_)) {
-      corrupt_.fetch_add(1, std::memory_order_relaxed);
-      return false;
-    }
+    const std::int64_t n = next_++;
+    if (!Load(n, frame)) return false;
     frame->stamp_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
                           std::chrono::system_clock::now().time_since_epoch())
                           .count();
-    frame->index = recording_.frames[index].source_index;
     return true;
   }
   for (;;) {
     if (stopped_.load()) return false;
     const Clock::time_point now = Clock::now();
-    if (next_index_ >= count) {
+    if (Ended(next_)) {
       // The recording ended: the camera falls silent.
       std::this_thread::sleep_until(std::min(give_up, now + std::chrono::milliseconds(20)));
       if (Clock::now() >= give_up) return false;
       continue;
     }
-    if (now >= Due(next_index_)) break;
+    if (now >= Due(next_)) break;
     if (now >= give_up) return false;
     std::this_thread::sleep_until(
-        std::min({Due(next_index_), give_up, now + std::chrono::milliseconds(20)}));
+        std::min({Due(next_), give_up, now + std::chrono::milliseconds(20)}));
   }
   // The newest frame that is due; earlier ones are skipped, as a camera's
   // would be when its reader falls behind.
   const Clock::time_point now = Clock::now();
-  while (next_index_ + 1 < count && Due(next_index_ + 1) <= now) ++next_index_;
-  const int index = next_index_++;
-  if (!LoadRecordedFrame(recording_, static_cast<std::size_t>(index), frame, &file_bytes_,
-                         &path_)) {
-    corrupt_.fetch_add(1, std::memory_order_relaxed);
-    return false;
-  }
-  frame->stamp_ns = StampOf(index);
-  frame->index = recording_.frames[index].source_index;
+  while (!Ended(next_ + 1) && Due(next_ + 1) <= now) ++next_;
+  const std::int64_t n = next_++;
+  if (!Load(n, frame)) return false;
+  frame->stamp_ns = StampOf(n);
   return true;
 }
 

@@ -6,7 +6,9 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "capture/camera_source.h"
@@ -28,21 +30,46 @@ enum class ReplayPacing : std::uint8_t {
   kFast,
 };
 
+/// How a ReplaySource plays its recording.
+struct ReplayOptions {
+  ReplayPacing pacing = ReplayPacing::kRealtime;
+  /// Every frame is read and decoded at construction and kept in memory; a
+  /// frame is then delivered by a copy, without disk or decoder (long soak
+  /// runs, and load tests of the daemon's own cost).
+  bool preload = false;
+  /// After the last frame the recording plays again from its frame at
+  /// `loop_start_s` (recording time), and on for ever: capture times go on
+  /// increasing, each repetition one loop length (from that frame to one
+  /// frame interval after the last) after the one before. A recording that
+  /// begins with the empty cell for the background model to learn keeps that
+  /// stretch out of the loop.
+  bool loop = false;
+  double loop_start_s = 0.0;
+};
+
 /// Plays one camera of a recording: masks (FrameKind::kMask), Mono8 or RGB
 /// frames as recorded (synth recordings with masks play their masks, else
 /// their colour frames). After the last frame it delivers nothing more, as a
-/// camera that stopped. An unreadable frame is counted in corrupt_frames()
-/// and skipped. Paced by sleeping in Next() (capture thread only).
+/// camera that stopped (unless it loops, ReplayOptions). An unreadable frame
+/// is counted in corrupt_frames() and skipped, each time it comes round. Paced
+/// by sleeping in Next() (capture thread only).
 class ReplaySource : public CameraSource {
  public:
+  /// @throws common::ConfigError when a loop's start lies at or after the
+  /// recording's last frame.
+  ReplaySource(RecordingCamera recording, SimClock clock, const ReplayOptions& options);
   ReplaySource(RecordingCamera recording, SimClock clock,
-               ReplayPacing pacing = ReplayPacing::kRealtime);
+               ReplayPacing pacing = ReplayPacing::kRealtime)
+      : ReplaySource(std::move(recording), clock, ReplayOptions{.pacing = pacing}) {}
 
   bool Next(Frame* frame, std::chrono::milliseconds timeout) override;
   void Stop() override { stopped_.store(true); }
   [[nodiscard]] std::uint64_t corrupt_frames() const override {
     return corrupt_.load(std::memory_order_relaxed);
   }
+
+  /// Bytes of the frames held in memory (ReplayOptions::preload), 0 without.
+  [[nodiscard]] std::size_t preloaded_bytes() const { return preloaded_bytes_; }
 
   /// Lock-step use (`hullguard replay`): reads frame `index` into *frame
   /// without pacing, stamped with the clock's epoch plus its recording time.
@@ -53,13 +80,28 @@ class ReplaySource : public CameraSource {
   [[nodiscard]] int frames() const { return static_cast<int>(recording_.frames.size()); }
 
  private:
-  [[nodiscard]] std::chrono::steady_clock::time_point Due(int index) const;
-  [[nodiscard]] std::int64_t StampOf(int index) const;
+  // Frames are numbered in playing order, repetitions of a loop included:
+  // frame n of the play is FrameAt(n) of the recording, OffsetNs(n) late.
+  [[nodiscard]] bool Ended(std::int64_t n) const { return !loop_ && n >= frames(); }
+  [[nodiscard]] int FrameAt(std::int64_t n) const;
+  [[nodiscard]] std::int64_t OffsetNs(std::int64_t n) const;
+  [[nodiscard]] std::chrono::steady_clock::time_point Due(std::int64_t n) const;
+  [[nodiscard]] std::int64_t StampOf(std::int64_t n) const;
+  /// Frame n of the play into *frame, all but its stamp; false (counted
+  /// corrupt) when it cannot be read.
+  bool Load(std::int64_t n, Frame* frame);
 
   RecordingCamera recording_;
   SimClock clock_;
   ReplayPacing pacing_;
-  int next_index_ = 0;
+  bool loop_ = false;
+  int loop_first_ = 0;               // First frame of each repetition after the first.
+  std::int64_t loop_period_ns_ = 0;  // How much later each repetition plays.
+  std::uint64_t index_stride_ = 0;   // Frame counter added per repetition.
+  std::vector<Frame> preloaded_;     // With preload: every frame (empty where unreadable).
+  std::vector<bool> loaded_;         // With preload: which frames read.
+  std::size_t preloaded_bytes_ = 0;
+  std::int64_t next_ = 0;                  // Next frame of the play.
   std::vector<unsigned char> file_bytes_;  // Reused read buffer.
   std::string path_;                       // Reused path buffer.
   std::atomic<bool> stopped_{false};

@@ -645,6 +645,19 @@ TEST(ConfigReplayTest, TheRecordingIsOpenedAtValidation) {
             std::string::npos)
       << error;
 
+  // A loop must keep two frames or more; playing from memory is just a flag.
+  EXPECT_EQ(ErrorIn(dir, Replace(config, "directory: rec}}",
+                                 "directory: rec, loop: true, preload: true}}")),
+            "");
+  const std::string late_loop =
+      Replace(config, "directory: rec}}", "directory: rec, loop: true, loop_start_s: 1000}}");
+  error = ErrorIn(dir, late_loop);
+  ASSERT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_NE(error.find("c.yaml:10: cameras[0].source.directory: loop_start_s 1000 leaves 0 "
+                       "frame(s) of camera 'cam0' to loop, at least 2 needed"),
+            std::string::npos)
+      << error;
+
   // A camera's frames are gone.
   fs::remove_all(dir.Path("rec/masks/cam1"));
   error = ErrorIn(dir, config);

@@ -270,6 +270,98 @@ TEST_F(RecordingTest, ReplaysRecordLayoutInRealTimeAndFast) {
   }
 }
 
+// Five frames at 20 Hz (0 to 200 ms); a loop from 0.1 s plays frames 2, 3, 4
+// again and again, each repetition 150 ms later (100 ms from frame 2 to frame
+// 4, plus one interval), with frame counters 5 higher per repetition.
+class ReplayLoopTest : public RecordingTest {
+ protected:
+  RecordingCamera Write5() {
+    {
+      RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
+      for (std::uint64_t i = 0; i < 5; ++i) {
+        Frame f = RandomFrame(FrameKind::kMono, 8, 6, i);
+        f.stamp_ns = 9'000'000'000 + static_cast<std::int64_t>(i) * 50'000'000;
+        f.index = i;
+        EXPECT_TRUE(writer.Write(0, i, f));
+      }
+    }
+    return ReadRecordingCamera(dir_.string(), "cam");
+  }
+  static std::int64_t LoopTimeNs(std::uint64_t index) {
+    return static_cast<std::int64_t>(index % 5) * 50'000'000 +
+           static_cast<std::int64_t>(index / 5) * 150'000'000;
+  }
+};
+
+TEST_F(ReplayLoopTest, LoopsFromItsStartWithCaptureTimesGoingOn) {
+  const RecordingCamera rec = Write5();
+  // As fast as consumed: every frame in play order, the loop's frames again.
+  {
+    ReplaySource source(
+        rec, SimClock::Now(),
+        ReplayOptions{.pacing = ReplayPacing::kFast, .loop = true, .loop_start_s = 0.1});
+    Frame f;
+    std::vector<std::uint64_t> got;
+    for (int i = 0; i < 11; ++i) {
+      ASSERT_TRUE(source.Next(&f, 10ms));
+      got.push_back(f.index);
+      EXPECT_EQ(f.grey.pixels, RandomFrame(FrameKind::kMono, 8, 6, f.index % 5).grey.pixels)
+          << f.index;
+    }
+    EXPECT_EQ(got, (std::vector<std::uint64_t>{0, 1, 2, 3, 4, 7, 8, 9, 12, 13, 14}));
+  }
+  // Real time: stamped with the clock's epoch plus the loop's times, past the
+  // recording's end.
+  {
+    const SimClock clock = SimClock::Now();
+    ReplaySource source(rec, clock, ReplayOptions{.loop = true, .loop_start_s = 0.1});
+    Frame f;
+    std::vector<std::uint64_t> got;
+    const auto until = std::chrono::steady_clock::now() + 700ms;
+    while (std::chrono::steady_clock::now() < until) {
+      if (!source.Next(&f, 50ms)) continue;
+      EXPECT_EQ(f.stamp_ns, clock.epoch_ns + LoopTimeNs(f.index)) << f.index;
+      EXPECT_TRUE(f.index < 5 || f.index % 5 >= 2) << f.index;
+      got.push_back(f.index);
+    }
+    ASSERT_FALSE(got.empty());
+    EXPECT_TRUE(std::is_sorted(got.begin(), got.end()));
+    EXPECT_GE(got.back(), 12U) << "700 ms reach the third repetition (from 400 ms)";
+  }
+}
+
+TEST_F(ReplayLoopTest, PreloadedFramesNeedNoFilesAndUnreadableOnesCountEachTime) {
+  RecordingCamera rec = Write5();
+  // Frame 3 is garbage on disk.
+  std::ofstream(dir_ / rec.frames[3].file, std::ios::trunc) << "not an image";
+  ReplaySource source(
+      rec, SimClock::Now(),
+      ReplayOptions{
+          .pacing = ReplayPacing::kFast, .preload = true, .loop = true, .loop_start_s = 0.1});
+  EXPECT_EQ(source.preloaded_bytes(), 4U * 8 * 6);
+  fs::remove_all(dir_);  // Played from memory from here on.
+  Frame f;
+  std::vector<std::uint64_t> got;
+  for (int i = 0; i < 8; ++i) {
+    if (!source.Next(&f, 10ms)) continue;
+    EXPECT_EQ(f.grey.pixels, RandomFrame(FrameKind::kMono, 8, 6, f.index % 5).grey.pixels);
+    got.push_back(f.index);
+  }
+  // Play order 0 1 2 [3] 4 7 [8] 9: the unreadable frame, twice.
+  EXPECT_EQ(got, (std::vector<std::uint64_t>{0, 1, 2, 4, 7, 9}));
+  EXPECT_EQ(source.corrupt_frames(), 2U);
+}
+
+TEST_F(ReplayLoopTest, ALoopOfFewerThanTwoFramesIsRefused) {
+  const RecordingCamera rec = Write5();
+  EXPECT_THROW(ReplaySource(rec, SimClock::Now(), ReplayOptions{.loop = true, .loop_start_s = 0.2}),
+               common::ConfigError);
+  // Without loop the start is not looked at; a loop from frame 3 is fine.
+  EXPECT_NO_THROW(ReplaySource(rec, SimClock::Now(), ReplayOptions{.loop_start_s = 9.0}));
+  EXPECT_NO_THROW(
+      ReplaySource(rec, SimClock::Now(), ReplayOptions{.loop = true, .loop_start_s = 0.15}));
+}
+
 // The synth layout keeps its frame times: i / rate_hz plus the camera's
 // offset modulo the period, as `hullguard replay` digests depend on them.
 TEST_F(RecordingTest, ReadsTheSynthLayout) {
