@@ -73,12 +73,12 @@ def main():
     replay = dict(config, cameras=[])
     for g, group in enumerate(groups):
         rec = os.path.join(work, f"rec{g}")
+        for cam in group:
+            replay["cameras"].append(dict(cam, source={
+                "type": "replay", "directory": rec, "camera": cam["name"], "preload": True,
+                "loop": True, "loop_start_s": a.loop_start_s}))
         if a.reuse and os.path.exists(os.path.join(rec, "manifest.yaml")):
             frames.update({cam["name"]: "reused" for cam in group})
-            for cam in group:
-                replay["cameras"].append(dict(cam, source={
-                    "type": "replay", "directory": rec, "camera": cam["name"], "preload": True,
-                    "loop": True, "loop_start_s": a.loop_start_s}))
             continue
         shutil.rmtree(rec, ignore_errors=True)
         part = os.path.join(work, f"record{g}.yaml")
@@ -94,10 +94,6 @@ def main():
             if "frames kept" in line:
                 name, rest = line.strip().split(":", 1)
                 frames[name] = int(rest.split()[0])
-        for cam in group:
-            replay["cameras"].append(dict(cam, source={
-                "type": "replay", "directory": rec, "camera": cam["name"], "preload": True,
-                "loop": True, "loop_start_s": a.loop_start_s}))
     replay_path = os.path.join(work, "replay.yaml")
     with open(replay_path, "w") as f:
         yaml.safe_dump(replay, f, sort_keys=False)
