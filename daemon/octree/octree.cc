@@ -886,6 +886,26 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
   }
 }
 
+LeafState Octree::SummaryOf(std::uint32_t index) const {
+  const Node& n = nodes_.get()[index];
+  if ((n.flags & kPending) != 0) return LeafState::kOccupied;
+  if (n.state == kPackedInner) {
+    // Two bits per child: kOccupied sets the low one, kOccluded the high one.
+    static_assert(static_cast<int>(LeafState::kOccupied) == 1 &&
+                  static_cast<int>(LeafState::kOccluded) == 2);
+    if ((n.children & 0x5555u) != 0) return LeafState::kOccupied;
+    return (n.children & 0xAAAAu) != 0 ? LeafState::kOccluded : LeafState::kFree;
+  }
+  if (n.state != kInner) return static_cast<LeafState>(n.state);
+  LeafState summary = LeafState::kFree;
+  for (std::uint32_t i = 0; i < 8; ++i) {
+    const LeafState s = SummaryOf(n.children + i);
+    if (s == LeafState::kOccupied) return s;
+    if (s == LeafState::kOccluded) summary = s;
+  }
+  return summary;
+}
+
 double Octree::Volume(LeafState state) const {
   double volume = 0.0;
   ForEachLeaf([&](const Cell& cell, LeafState s) {

@@ -2,6 +2,7 @@
 /// @file
 /// The incremental conservative octree over 8x8x8 parallel roots.
 
+#include <algorithm>
 #include <array>
 #include <atomic>
 #include <chrono>
@@ -176,6 +177,14 @@ class Octree {
   template <class Fn>
   void ForEachLeaf(Fn&& fn) const;
 
+  /// The tree read into a grid of `level` (at most depth): calls fn(const
+  /// Cell&, LeafState) for every leaf coarser than `level` and for every cell
+  /// of `level`, with what its leaves hold: kOccupied when some leaf inside
+  /// reads occupied (as ForEachLeaf reports it), else kOccluded when one is
+  /// occluded, else kFree. A cell's leaves are read only until an occupied one.
+  template <class Fn>
+  void ForEachCellUpTo(int level, Fn&& fn) const;
+
   /// Volume (m^3) of the leaves in the given state.
   [[nodiscard]] double Volume(LeafState state) const;
   [[nodiscard]] std::int64_t NumNodes() const;
@@ -238,6 +247,10 @@ class Octree {
 
   template <class Fn>
   void VisitLeaves(std::uint32_t index, const Cell& cell, Fn& fn) const;
+  template <class Fn>
+  void VisitCellsUpTo(std::uint32_t index, const Cell& cell, int level, Fn& fn) const;
+  /// What the subtree's leaves hold: occupied over occluded over free.
+  [[nodiscard]] LeafState SummaryOf(std::uint32_t index) const;
 
   /// Evens out the workers' free lists (after an update).
   void BalanceFreeBlocks();
@@ -304,6 +317,37 @@ void Octree::VisitLeaves(std::uint32_t index, const Cell& cell, Fn& fn) const {
   for (std::uint32_t i = 0; i < 8; ++i) {
     const Cell child = cell.Child(i);
     VisitLeaves(n.children + i, child, fn);
+  }
+}
+
+template <class Fn>
+void Octree::VisitCellsUpTo(std::uint32_t index, const Cell& cell, int level, Fn& fn) const {
+  if (cell.level == level) {
+    fn(cell, SummaryOf(index));
+    return;
+  }
+  const Node& n = nodes_.get()[index];
+  if ((n.flags & kPending) != 0) {
+    fn(cell, LeafState::kOccupied);
+    return;
+  }
+  if (n.state == kPackedInner) {  // Its children are cells of `level`.
+    for (std::uint32_t i = 0; i < 8; ++i) fn(cell.Child(i), PackedChild(n.children, i));
+    return;
+  }
+  if (n.state != kInner) {
+    fn(cell, static_cast<LeafState>(n.state));
+    return;
+  }
+  for (std::uint32_t i = 0; i < 8; ++i) VisitCellsUpTo(n.children + i, cell.Child(i), level, fn);
+}
+
+template <class Fn>
+void Octree::ForEachCellUpTo(int level, Fn&& fn) const {
+  level = std::clamp(level, kRootLevel, config_.depth);
+  for (std::uint32_t r = 0; r < roots_.size(); ++r) {
+    const Cell root{kRootLevel, r & 7, (r >> 3) & 7, r >> 6};
+    VisitCellsUpTo(r, root, level, fn);
   }
 }
 

@@ -267,11 +267,13 @@ void Pipeline::FillCells(OccupancySnapshot* snapshot) {
     const std::size_t i = x + static_cast<std::size_t>(n) * (y + static_cast<std::size_t>(n) * z);
     bits[i >> 6] |= std::uint64_t{1} << (i & 63);
   };
-  tree_->ForEachLeaf([&](const octree::Cell& cell, octree::LeafState state) {
+  // Cells of the published level come summarised (occupied over occluded);
+  // coarser leaves cover blocks of them.
+  tree_->ForEachCellUpTo(p, [&](const octree::Cell& cell, octree::LeafState state) {
     if (state == octree::LeafState::kFree) return;
     std::vector<std::uint64_t>& bits =
         state == octree::LeafState::kOccupied ? occupied_bits_ : occluded_bits_;
-    if (cell.level >= p) {
+    if (cell.level >= p) {  // Finer only where p is above the roots' level.
       const int shift = cell.level - p;
       mark(bits, cell.x >> shift, cell.y >> shift, cell.z >> shift);
       return;

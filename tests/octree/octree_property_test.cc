@@ -638,6 +638,61 @@ std::vector<std::uint8_t> PublishedGrid(const Octree& tree, int level) {
   return grid;
 }
 
+// The same grid read with ForEachCellUpTo(): a cell of `level` once, with its
+// leaves summarised; coarser leaves as they are.
+std::vector<std::uint8_t> SummarisedGrid(const Octree& tree, int level) {
+  const std::size_t n = std::size_t{1} << level;
+  std::vector<std::uint8_t> grid(n * n * n, 255);  // 255: not reported.
+  tree.ForEachCellUpTo(level, [&](const Cell& cell, LeafState state) {
+    EXPECT_LE(cell.level, level);
+    const std::uint32_t span = 1u << (level - cell.level);
+    for (std::uint32_t z = cell.z * span; z < (cell.z + 1) * span; ++z) {
+      for (std::uint32_t y = cell.y * span; y < (cell.y + 1) * span; ++y) {
+        for (std::uint32_t x = cell.x * span; x < (cell.x + 1) * span; ++x) {
+          std::uint8_t& g = grid[x + n * (y + n * z)];
+          EXPECT_EQ(g, 255) << "cell reported twice";
+          g = static_cast<std::uint8_t>(state);
+        }
+      }
+    }
+  });
+  return grid;
+}
+
+// ForEachCellUpTo() summarises as the leaves read: every cell of the grid
+// once, the same state as PublishedGrid() from every leaf, at every level,
+// on trees with aborted updates (pending nodes), packed finest children and
+// settled cells.
+TEST(OctreeCellsUpToTest, SummariesAreWhatTheLeavesHold) {
+  RandomScene scene = SequenceScene(4);
+  const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+  Quadtrees qt(scene.cameras);
+  constexpr int kDepth = 6;
+  OctreeConfig config{scene.bounds, kDepth, 2};
+  OctreeConfig settle_config = config;
+  settle_config.settle_level = 4;
+  settle_config.coarse_first_depth = 3;
+  Octree tree(config, views), settled(settle_config, views);
+  std::mt19937_64 rng(12);
+  int aborted = 0;
+  for (int frame = 0; frame < 12; ++frame) {
+    const Eigen::Vector3d step(0.03 * std::sin(frame * 0.4), 0.025, -0.005);
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
+    qt.Build(testing::RenderMasks(scene.cameras, scene.objects));
+    UpdateControl control;
+    if (frame % 3 == 2) control.node_budget = static_cast<std::int64_t>(rng() % 800);
+    aborted += tree.Update(qt.ptrs, control).aborted;
+    aborted += settled.Update(qt.ptrs, control).aborted;
+    for (const Octree* t : {&tree, &settled}) {
+      for (int level = 3; level <= kDepth; ++level) {
+        ASSERT_EQ(SummarisedGrid(*t, level), PublishedGrid(*t, level))
+            << "frame " << frame << " level " << level << (t == &settled ? " settled" : "");
+      }
+    }
+  }
+  EXPECT_GT(aborted, 2);
+}
+
 // settle_level: a tree that stops refining a settle-level cell once a leaf in
 // it reads occupied publishes the same grid of that level as the full tree,
 // frame after frame of a moving sequence, with and without coarse first, and
