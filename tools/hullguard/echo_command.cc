@@ -31,6 +31,7 @@ struct EchoFlags {
   bool json = false;
   std::string topic = "all";  // occupancy, status, tracks or all.
   std::string snapshot;       // PNG of the last occupancy sample; empty: none.
+  std::string latency_out;    // Every occupancy sample's latency, one per line; empty: none.
 };
 
 bool Shows(const EchoFlags& f, const char* topic) { return f.topic == "all" || f.topic == topic; }
@@ -441,6 +442,18 @@ int RunEcho(const EchoFlags& f) {
     return kExitFailure;
   }
   PrintLatency(record, f.json);
+  if (!f.latency_out.empty()) {
+    std::FILE* out = std::fopen(f.latency_out.c_str(), "w");
+    bool ok = out != nullptr;
+    for (std::size_t i = 0; ok && i < record.latency_ms.size(); ++i) {
+      ok = std::fprintf(out, "%.3f\n", record.latency_ms[i]) > 0;
+    }
+    if (out != nullptr) ok = std::fclose(out) == 0 && ok;
+    if (!ok) {
+      std::fprintf(stderr, "hullguard echo: cannot write %s\n", f.latency_out.c_str());
+      return kExitFailure;
+    }
+  }
   if (!f.snapshot.empty()) {
     WriteEchoSnapshot(record, f.snapshot);
     std::fprintf(stderr, "hullguard echo: wrote %s\n", f.snapshot.c_str());
@@ -469,6 +482,9 @@ void RegisterEcho(CLI::App& app, int* exit_code) {
   cmd->add_option("--snapshot", flags->snapshot,
                   "Write a picture (PNG: top, side and perspective views) of the last occupancy "
                   "sample at exit, with the tracks computed from it");
+  cmd->add_option("--latency-out", flags->latency_out,
+                  "Write each occupancy sample's latency (ms, capture stamp to arrival) to this "
+                  "file at exit, one per line in arrival order");
   cmd->callback([flags, exit_code] { *exit_code = RunEcho(*flags); });
 }
 

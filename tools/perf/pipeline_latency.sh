@@ -8,7 +8,8 @@
 # Defaults: config/paper_cell.yaml, 20 s, 3 s, build. The first SKIP seconds
 # (start-up: scenes, obstacle depth maps, background learning, the first full
 # build) are not measured: latency and `window_missed_cycles` cover the rest.
-# Prints one JSON object.
+# Prints one JSON object. With HG_LATENCY_OUT=FILE, every measured sample's
+# latency (ms) is also written to FILE, one per line (tools/perf/plot_latency.py).
 set -eu
 root=$(cd "$(dirname "$0")/../.." && pwd)
 config=${1:-$root/config/paper_cell.yaml}
@@ -23,7 +24,7 @@ run() {
   d=$!
   sleep "$skip"
   "$build/tools/hullguard" echo --json --topic status --timeout "$((seconds - skip - 1))" \
-    > "$out/echo.jsonl" || true
+    --latency-out "$out/latency.txt" > "$out/echo.jsonl" || true
   wait "$d"
 }
 if [ "${HG_IN_NETNS:-}" != 1 ] && "$root/tests/publish/in_netns.sh" true 2>/dev/null; then
@@ -31,6 +32,7 @@ if [ "${HG_IN_NETNS:-}" != 1 ] && "$root/tests/publish/in_netns.sh" true 2>/dev/
 fi
 export CYCLONEDDS_URI="file://$root/config/cyclonedds.xml"
 run
+if [ -n "${HG_LATENCY_OUT:-}" ] && [ -f "$out/latency.txt" ]; then cp "$out/latency.txt" "$HG_LATENCY_OUT"; fi
 last=$(grep 'hullguardd: cycle' "$out/daemon.log" | tail -1)
 cycles=$(echo "$last" | sed -n 's/.*cycle \([0-9]*\) .*/\1/p')
 misses=$(echo "$last" | sed -n 's/.*deadline misses \([0-9]*\) .*/\1/p')
