@@ -10,6 +10,7 @@
 #include "app/config.h"
 #include "app/run.h"
 #include "common/config_error.h"
+#include "common/version.h"
 
 namespace {
 
@@ -36,6 +37,8 @@ int main(int argc, char** argv) {
                  "With --config: stop after this many seconds (0: run until "
                  "SIGTERM or SIGINT)")
       ->check(CLI::NonNegativeNumber);
+  app.set_version_flag("--version", std::string("hullguardd ") + hg::common::Version() + " (" +
+                                        hg::common::Commit() + ")");
   config_opt->excludes(check_opt)->excludes(docs_opt);
   check_opt->excludes(docs_opt);
   try {

@@ -17,6 +17,7 @@
 #include "common/config_error.h"
 #include "common/heartbeat.h"
 #include "common/log.h"
+#include "common/version.h"
 #include "geometry/mesh.h"
 #include "pipeline/black_box.h"
 #include "pipeline/pipeline.h"
@@ -236,7 +237,7 @@ int RunPipeline(const Config& config, double duration_s) {
   if (publish_stage) publish_stage->Start();
   pipeline.Start();
   watchdog.Start();
-  log::Info("running {}", Summary(config));
+  log::Info("hullguardd {} ({}) running {}", common::Version(), common::Commit(), Summary(config));
   // Lets a test or a viewer relate stamps to scene or recording time.
   log::Info("sim/replay time 0 is {} ns (CLOCK_REALTIME)", sim_clock.epoch_ns);
   bool ready = false;

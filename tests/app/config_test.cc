@@ -15,6 +15,7 @@
 #include "app/pipeline_setup.h"
 #include "app/tracking_stage.h"
 #include "common/config_error.h"
+#include "common/version.h"
 #include "geometry/camera_yaml.h"
 #include "support/run_tool.h"
 
@@ -456,6 +457,16 @@ TEST(ConfigTest, ReferenceDocNamesEveryKey) {
   EXPECT_NE(md.find("| `octree.depth` | integer | 10 | 3 .. 16 |"), std::string::npos);
   EXPECT_NE(md.find("| `logging.level` | enum | info | trace, debug, info, warn or error |"),
             std::string::npos);
+}
+
+// `--version` names the version and the commit built, and exits 0.
+TEST(HullguarddTest, VersionNamesTheBuild) {
+  const testing::ProcessResult r = testing::RunTool(HG_HULLGUARDD_BIN, "--version");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind(std::string("hullguardd ") + common::Version() + " (", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find(std::string(common::Commit()) + ")"), std::string::npos) << r.out;
+  EXPECT_STRNE(common::Version(), "");
+  EXPECT_STRNE(common::Commit(), "");
 }
 
 TEST(HullguarddTest, CheckConfig) {

@@ -1,13 +1,17 @@
 // hullguard: command-line tool over the hullguard libraries.
 #include <cstdio>
 #include <exception>
+#include <string>
 
 #include "common/config_error.h"
+#include "common/version.h"
 #include "hullguard/commands.h"
 
 int main(int argc, char** argv) {
   CLI::App app{"hullguard: conservative multi-camera reconstruction tools"};
   app.require_subcommand(1);
+  app.set_version_flag("--version", std::string("hullguard ") + hg::common::Version() + " (" +
+                                        hg::common::Commit() + ")");
   int exit_code = hg::tools::kExitOk;
   hg::tools::RegisterCarve(app, &exit_code);
   hg::tools::RegisterDemo(app, &exit_code);
@@ -25,6 +29,8 @@ int main(int argc, char** argv) {
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
   } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
     return app.exit(e);
   } catch (const CLI::ParseError& e) {
     std::fprintf(stderr, "hullguard: %s\n", e.what());
