@@ -55,8 +55,8 @@ struct ReplayOptions {
 /// by sleeping in Next() (capture thread only).
 class ReplaySource : public CameraSource {
  public:
-  /// @throws common::ConfigError when a loop's start lies at or after the
-  /// recording's last frame.
+  /// @throws common::ConfigError when fewer than two frames lie at or after
+  /// a loop's start.
   ReplaySource(RecordingCamera recording, SimClock clock, const ReplayOptions& options);
   ReplaySource(RecordingCamera recording, SimClock clock,
                ReplayPacing pacing = ReplayPacing::kRealtime)
@@ -72,8 +72,9 @@ class ReplaySource : public CameraSource {
   [[nodiscard]] std::size_t preloaded_bytes() const { return preloaded_bytes_; }
 
   /// Lock-step use (`hullguard replay`): reads frame `index` into *frame
-  /// without pacing, stamped with the clock's epoch plus its recording time.
-  /// False when the file is missing or unreadable.
+  /// without pacing, stamped with the clock's epoch plus its recording time,
+  /// from its file (preloaded or not; no loop). False when the file is missing
+  /// or unreadable.
   bool ReadFrame(int index, Frame* frame);
   [[nodiscard]] const RecordingCamera& recording() const { return recording_; }
   /// Number of frames in the recording.
