@@ -10,7 +10,20 @@ namespace hg::octree {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr int kNumRoots = 512;
+constexpr int kNumRoots = Octree::kNumRoots;
+
+// The order passes take the roots in: columns of eight (z fastest), the
+// columns in Morton order of (x, y).
+constexpr std::array<std::uint16_t, kNumRoots> kRootOrder = [] {
+  std::array<std::uint16_t, kNumRoots> order{};
+  for (int i = 0; i < kNumRoots; ++i) {
+    const int z = i & 7, m = i >> 3;
+    const int x = (m & 1) | ((m >> 1) & 2) | ((m >> 2) & 4);
+    const int y = ((m >> 1) & 1) | ((m >> 2) & 2) | ((m >> 3) & 4);
+    order[i] = static_cast<std::uint16_t>(x + 8 * y + 64 * z);
+  }
+  return order;
+}();
 // Every bit: a camera set that no real one (at most 16 cameras) fills.
 constexpr std::uint32_t kAllCameras = ~0u;
 
@@ -720,6 +733,7 @@ void Octree::Reset() {
     nodes_.get()[r] = root;
   }
   next_block_.store(kNumRoots / 8, std::memory_order_relaxed);  // After the roots.
+  root_level_.fill(0);
   for (int w = 0; w < pool_->num_threads(); ++w) {
     scratch_[w].free_blocks.clear();
     scratch_[w].capped.clear();
@@ -786,13 +800,23 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   // Roots are independent: whichever worker takes a root owns its pool for the pass.
   std::atomic<std::int64_t> spent{0};
   UpdateStats stats;
+  root_level_.fill(0);
+  int aborted_level = 0;  // The pass that was aborted, if one was.
   auto run_pass = [&](Updater::Pass pass, int split_limit) {
     Updater shared(*this, masks, control, pass, split_limit, spent);
-    auto run = [&](int r, int worker) { shared.UpdateRoot(r, scratch_[worker]); };
+    auto run = [&](int i, int worker) {
+      const int r = kRootOrder[(i + root_start_) % kNumRoots];
+      shared.UpdateRoot(r, scratch_[worker]);
+      // Finished before any abort: exact to this pass's level. (An abort
+      // raised by another worker just after still counts it unfinished.)
+      if (!shared.aborted()) root_level_[r] = static_cast<std::uint8_t>(split_limit);
+    };
     pool_->Run(kNumRoots, run);
     if (!shared.aborted()) {
       stats.level_done_ms[split_limit] =
           std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    } else {
+      aborted_level = split_limit;
     }
     return shared.aborted();
   };
@@ -825,6 +849,16 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   } else {
     stats.aborted = run_pass(Updater::Pass::kFull, config_.depth);
     if (!stats.aborted) stats.refined_level = config_.depth;
+  }
+  if (aborted_level > 0) {
+    // The next update's passes begin with the first root this one's aborted
+    // pass did not finish.
+    int done = 0;
+    while (done < kNumRoots &&
+           root_level_[kRootOrder[(done + root_start_) % kNumRoots]] >= aborted_level) {
+      ++done;
+    }
+    root_start_ = (root_start_ + done) % kNumRoots;
   }
   for (int w = 0; w < pool_->num_threads(); ++w) {
     const WorkerScratch& k = scratch_[w];

@@ -145,6 +145,8 @@ class Octree {
  public:
   static constexpr int kMaxCameras = 16;
   static constexpr int kRootLevel = 3;
+  /// The 8 x 8 x 8 roots, numbered x + 8 y + 64 z.
+  static constexpr int kNumRoots = 512;
   /// Deepest supported tree: cell coordinates of 19 bits each pack into one
   /// 64-bit key with the level (knowledge filter).
   static constexpr int kMaxDepth = 19;
@@ -167,6 +169,16 @@ class Octree {
   void Reset();
 
   [[nodiscard]] PointState StateAt(const Eigen::Vector3d& p_W) const;
+
+  /// Per root, the level the last update left it exact down to, as
+  /// UpdateStats::refined_level is for the whole tree: config.depth where the
+  /// root was completed, the level of the last pass that completed it with
+  /// coarse first, 0 where an abort left it unfinished. An aborted pass
+  /// completes some roots; the next update's passes start where the last
+  /// aborted one stopped, so that successive aborted updates refine the
+  /// whole cell in turn. Roots go in columns (z fastest), the columns in
+  /// Morton order of (x, y), so the roots a pass completes lie together.
+  [[nodiscard]] std::span<const std::uint8_t> RootLevels() const { return root_level_; }
 
   /// The leaf holding p_W (a pending node counts as an occupied leaf); nullopt
   /// outside the bounds.
@@ -295,6 +307,8 @@ class Octree {
   std::uint32_t forced_now_ = 0;              // ForcedSince(update_count_ - 1).
   std::vector<std::uint32_t> discontinuity_;  // Per camera: last update that was not continuous.
   std::vector<std::uint64_t> version_ring_;   // [update % kVersionRing][camera].
+  std::array<std::uint8_t, kNumRoots> root_level_{};  // RootLevels().
+  int root_start_ = 0;  // Position in the pass order where the passes begin.
 };
 
 template <class Fn>

@@ -929,6 +929,76 @@ TEST_P(OctreeCoarseFirstAbortTest, SameLeavesWhenCompleteAndCoarseResultWhenAbor
 
 INSTANTIATE_TEST_SUITE_P(Seeds, OctreeCoarseFirstAbortTest, ::testing::Range(0, 3));
 
+// Per root, what an aborted update left exact (Octree::RootLevels): a root at
+// level L frees everything a complete tree of depth L frees inside it; every
+// root is at the depth after a complete update; and the passes of successive
+// aborted updates begin where the last one stopped, so the roots they finish
+// at the depth differ from update to update.
+TEST(OctreeRootLevelsTest, AbortedPassesFinishRootsInTurnAndEachIsExactToItsLevel) {
+  RandomScene scene = SequenceScene(46);
+  const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+  constexpr int kDepth = 7;
+  OctreeConfig config{scene.bounds, kDepth, 2};
+  config.coarse_first_depth = 4;
+  Octree tree(config, views);
+  Quadtrees qt(scene.cameras);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::set<int> finished_ever;
+  std::size_t finished_most = 0;
+  int checked_roots = 0;
+  int aborted = 0;
+  for (int frame = 0; frame < 24; ++frame) {
+    const Eigen::Vector3d step(0.03 * std::cos(frame * 0.4), -0.02, 0.01);
+    for (auto& obj : scene.objects) obj = scene::Translated(obj, step);
+    const auto masks = testing::RenderMasks(scene.cameras, scene.objects);
+    qt.Build(masks);
+    UpdateControl control;
+    const bool complete = frame % 6 == 0;
+    if (!complete) control.node_budget = 4000 + static_cast<std::int64_t>(rng() % 16000);
+    const UpdateStats stats = tree.Update(qt.ptrs, control);
+    const std::span<const std::uint8_t> levels = tree.RootLevels();
+    ASSERT_EQ(levels.size(), static_cast<std::size_t>(Octree::kNumRoots));
+    if (complete) ASSERT_FALSE(stats.aborted);
+    if (!stats.aborted) {
+      for (const std::uint8_t l : levels) ASSERT_EQ(l, kDepth);
+      continue;
+    }
+    ++aborted;
+    std::set<int> finished;
+    for (int r = 0; r < Octree::kNumRoots; ++r) {
+      EXPECT_GE(levels[r], stats.refined_level) << "root " << r;
+      if (levels[r] == kDepth) finished.insert(r);
+    }
+    finished_most = std::max(finished_most, finished.size());
+    finished_ever.insert(finished.begin(), finished.end());
+    // Each root's level against a complete tree of that depth, inside the root.
+    for (int level = config.coarse_first_depth; level <= kDepth; ++level) {
+      Octree exact({scene.bounds, level, 1}, views);
+      Quadtrees fresh(scene.cameras);
+      fresh.Build(masks);
+      exact.Update(fresh.ptrs);
+      exact.ForEachLeaf([&](const Cell& cell, LeafState state) {
+        if (state != LeafState::kFree) return;
+        const int shift = cell.level - Octree::kRootLevel;
+        const int root =
+            static_cast<int>((cell.x >> shift) + 8 * (cell.y >> shift) + 64 * (cell.z >> shift));
+        if (levels[root] != level) return;
+        const common::Box3 box = CellBox(scene.bounds, cell);
+        const Eigen::Vector3d t(u01(rng), u01(rng), u01(rng));
+        const Eigen::Vector3d p = box.min + t.cwiseProduct(box.max - box.min);
+        ASSERT_EQ(tree.StateAt(p), PointState::kFree)
+            << "frame " << frame << " root " << root << " level " << level;
+        ++checked_roots;
+      });
+    }
+  }
+  EXPECT_GE(aborted, 10);
+  EXPECT_GT(checked_roots, 100);
+  EXPECT_GT(finished_ever.size(), finished_most) << "the passes always finish the same roots";
+  EXPECT_LT(finished_most, static_cast<std::size_t>(Octree::kNumRoots));
+}
+
 // The key level is a pass of its own: some aborted updates end refined to
 // exactly it, which without it no update does (passes 3, 5, 7).
 TEST(OctreeCoarseFirstTest, PassesReachTheKeyLevelOneLevelAtATime) {
