@@ -496,6 +496,8 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
   snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
   snapshot->complete = !stats.aborted;
   snapshot->refined_cell_m = RefinedCellSize(options_.bounds, stats.refined_level);
+  const std::span<const std::uint8_t> root_levels = tree_->RootLevels();
+  snapshot->root_levels.assign(root_levels.begin(), root_levels.end());  // Capacity kept.
   snapshot->bounds = options_.bounds;
   snapshot->depth = options_.publish_depth;
   // Nodes the full store could not split read occupied: conservative, but

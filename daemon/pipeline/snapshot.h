@@ -3,6 +3,7 @@
 /// What one fusion cycle hands to its consumers: an immutable occupancy
 /// snapshot and the pipeline's health. Publishers read these, never the octree.
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <string>
@@ -91,6 +92,11 @@ struct OccupancySnapshot {
   /// cell size when complete; 0 when an abort left whole regions unvisited
   /// (listed occupied).
   double refined_cell_m = 0.0;
+  /// Per octree root (8 x 8 x 8 over the bounds, numbered x + 8 y + 64 z),
+  /// the level the update left it exact down to (octree::Octree::RootLevels):
+  /// an aborted update finishes some roots further than refined_cell_m says
+  /// for the whole cell. Empty: not known.
+  std::vector<std::uint8_t> root_levels;
   common::Box3 bounds;
   int depth = 0;                  ///< Publishing grid: 2^depth cells per axis.
   std::vector<GridRun> occupied;  ///< Cells that may hold a person (seen as foreground).
@@ -143,6 +149,35 @@ struct OccupancySnapshot {
     if (c.state != CameraState::kOk) return false;
   }
   return s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m);
+}
+
+/// Octree roots per axis (root_levels).
+inline constexpr int kRootsPerAxis = 8;
+
+/// WholeForBirths region by region: where an aborted update finished octree
+/// roots to cells of at most one tracking voxel, a new track may start from
+/// what lies wholly inside them, the cameras and the skew permitting as in
+/// WholeForBirths. Sets (*roots)[r] for those roots (root_levels numbering)
+/// and returns whether there is any; false, with none set, when the
+/// snapshot is whole (WholeForBirths holds everywhere) or says nothing of
+/// its roots.
+[[nodiscard]] inline bool RootsWholeForBirths(
+    const OccupancySnapshot& s, double voxel_m, double max_skew_ms,
+    std::array<bool, kRootsPerAxis * kRootsPerAxis * kRootsPerAxis>* roots) {
+  roots->fill(false);
+  if (s.complete || s.root_levels.size() != roots->size()) return false;
+  if (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m) return false;  // Whole.
+  if (s.health.skew_ms > max_skew_ms) return false;
+  for (const CameraHealth& c : s.health.cameras) {
+    if (c.state != CameraState::kOk) return false;
+  }
+  bool any = false;
+  for (std::size_t r = 0; r < roots->size(); ++r) {
+    const double cell = RefinedCellSize(s.bounds, s.root_levels[r]);
+    (*roots)[r] = cell > 0.0 && cell <= voxel_m;
+    any = any || (*roots)[r];
+  }
+  return any;
 }
 
 }  // namespace hg::pipeline

@@ -230,8 +230,45 @@ void Tracker::Init() {
 
 void Tracker::Update(const pipeline::OccupancySnapshot& snapshot) {
   map_.SetUnknownFromSnapshot(snapshot);
-  Step(snapshot.stamp_ns,
-       pipeline::WholeForBirths(snapshot, options_.voxel_m, options_.birth_max_skew_ms));
+  const bool whole =
+      pipeline::WholeForBirths(snapshot, options_.voxel_m, options_.birth_max_skew_ms);
+  births_by_root_ =
+      !whole && pipeline::RootsWholeForBirths(snapshot, options_.voxel_m,
+                                              options_.birth_max_skew_ms, &birth_roots_);
+  root_bounds_ = snapshot.bounds;
+  stats_.cycles_with_births_by_root += births_by_root_ ? 1 : 0;
+  Step(snapshot.stamp_ns, whole || births_by_root_);
+  births_by_root_ = false;
+}
+
+bool Tracker::InBirthRoots() const {
+  const VoxelGrid& g = map_.grid();
+  const Vector3d extent = root_bounds_.max - root_bounds_.min;
+  const double half = 0.5 * g.voxel_m();
+  // Root index along one axis of a coordinate, clamped to the bounds.
+  auto root = [&](double v, int axis) {
+    const double t = (v - root_bounds_.min[axis]) / extent[axis] * pipeline::kRootsPerAxis;
+    return std::clamp(static_cast<int>(std::floor(t)), 0, pipeline::kRootsPerAxis - 1);
+  };
+  for (const std::uint32_t i : queue_) {
+    const Eigen::Vector3i c = g.Coords(i);
+    const Vector3d p = g.Centre(c.x(), c.y(), c.z());
+    // Every root the voxel's box overlaps (a voxel is smaller than a root).
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = root(p[a] - half, a);
+      hi[a] = root(p[a] + half, a);
+    }
+    for (int z = lo[2]; z <= hi[2]; ++z) {
+      for (int y = lo[1]; y <= hi[1]; ++y) {
+        for (int x = lo[0]; x <= hi[0]; ++x) {
+          const int r = x + pipeline::kRootsPerAxis * (y + pipeline::kRootsPerAxis * z);
+          if (!birth_roots_[static_cast<std::size_t>(r)]) return false;
+        }
+      }
+    }
+  }
+  return true;
 }
 
 void Tracker::Step(std::int64_t stamp_ns, bool births) {
@@ -391,6 +428,8 @@ void Tracker::Births() {
         }
       }
       if (static_cast<double>(queue_.size()) * vv < options_.birth_min_volume_m3) continue;
+      // An aborted snapshot: only from what the update finished to the voxel.
+      if (births_by_root_ && !InBirthRoots()) continue;
       // The component's evidence of a new person: unexplained voxels that the
       // cameras see past every track; some of them must stand on something.
       int evidence = 0;
@@ -446,7 +485,14 @@ void Tracker::Births() {
         layer_evidence_[z] = 0;
       }
       for (const std::uint32_t i : queue_) marks_[i] &= static_cast<std::uint8_t>(~kEvidenceMark);
-      if (grounded) StartOrReacquire(evidence, sum, sum_sq, tall);
+      if (grounded) {
+        const std::uint64_t before = stats_.births + stats_.object_births + stats_.reacquisitions;
+        StartOrReacquire(evidence, sum, sum_sq, tall);
+        if (births_by_root_) {
+          stats_.births_by_root +=
+              stats_.births + stats_.object_births + stats_.reacquisitions - before;
+        }
+      }
     }
   }
   for (const std::uint32_t i : unknown) marks_[i] = 0;

@@ -5,6 +5,7 @@
 /// deaths after a time without support, and a Voronoi split of the evidence
 /// between tracks whose particle clouds overlap.
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -177,6 +178,11 @@ struct TrackerStats {
   std::uint64_t reacquisitions = 0;  ///< Components given back to a track without support.
   std::uint64_t object_births = 0;   ///< Object tracks started (not people, not published).
   std::uint64_t promotions = 0;      ///< Object tracks that became people (counted in births).
+  /// Cycles whose snapshot was aborted short of the tracking voxel but had
+  /// roots finished that far (births only from components wholly in those).
+  std::uint64_t cycles_with_births_by_root = 0;
+  /// Of their births (and reacquisitions), those such a cycle started.
+  std::uint64_t births_by_root = 0;
 };
 
 /// The multi-person tracker. One cycle (Step) per occupancy snapshot:
@@ -225,7 +231,9 @@ class Tracker {
 
   /// Takes the snapshot's occupied cells as the UNKNOWN voxels and runs a cycle
   /// at the snapshot's stamp; new tracks only from a whole snapshot
-  /// (pipeline::WholeForBirths).
+  /// (pipeline::WholeForBirths), or, from an aborted one, from components
+  /// lying wholly in octree roots it finished to the tracking voxel
+  /// (pipeline::RootsWholeForBirths).
   void Update(const pipeline::OccupancySnapshot& snapshot);
 
   /// Runs a cycle on the current voxel states (set UNKNOWN through
@@ -266,6 +274,9 @@ class Tracker {
   void Init();
   void Assess(Slot* slot, double dt_s);
   void Births();
+  /// With births by region this cycle: whether every voxel of the component
+  /// in queue_ lies wholly in roots that allow births.
+  [[nodiscard]] bool InBirthRoots() const;
   /// A component with `unexplained` voxels outside every gate (sum and sum of
   /// squares of their centres): re-acquired by a lost track, or a new track.
   /// `tall`: the evidence reaches birth_min_height_m (a new track is a
@@ -297,6 +308,12 @@ class Tracker {
   std::vector<std::uint32_t> queue_;  // Component search order.
   std::vector<Eigen::Vector3i> neighbours_;
   std::vector<std::uint32_t> path_;  // Grounded(): the column walked.
+  // Births by region (Update from an aborted snapshot): the roots that allow
+  // them, over the snapshot's bounds; off outside such a cycle.
+  bool births_by_root_ = false;
+  std::array<bool, pipeline::kRootsPerAxis * pipeline::kRootsPerAxis * pipeline::kRootsPerAxis>
+      birth_roots_{};
+  common::Box3 root_bounds_;
   // Explaining away: per voxel the cameras that see it, the cameras' centres,
   // and per camera and supported track the ellipsoid in its unit-sphere frame.
   struct SightTest {

@@ -542,6 +542,58 @@ TEST(TrackerTest, BirthsWaitForAWholeCycle) {
   EXPECT_EQ(tracker.stats().births, 1u);
 }
 
+// From an update aborted short of the tracking voxel, a track starts where
+// the update finished the octree roots to it (RootsWholeForBirths): the
+// person's roots all finished starts a track; one of them not finished, a
+// stale camera, or no root levels at all starts none.
+TEST(TrackerTest, BirthsFromTheRootsAnAbortedUpdateFinished) {
+  const Vector3d centre(1.5, 1.0, 0.9);
+  const Ellipsoid person = Person(centre);
+  // Roots of the 4 m cube are 0.5 m; those the blob (and a voxel around it) touches.
+  const common::Box3 bounds{Vector3d::Zero(), Vector3d(4, 4, 4)};
+  auto touches_person = [&](int r) {
+    const Vector3d lo = Vector3d(r % 8, (r / 8) % 8, r / 64) * 0.5;
+    const Vector3d hi = lo + Vector3d::Constant(0.5);
+    const Vector3d margin = person.half_axes_m + Vector3d::Constant(0.1);
+    return ((lo.array() <= (centre + margin).array()) && (hi.array() >= (centre - margin).array()))
+        .all();
+  };
+  const int centre_root = 3 + 8 * 2 + 64 * 1;  // (1.5, 1.0, 0.9) lies in root (3, 2, 1).
+  ASSERT_TRUE(touches_person(centre_root));
+  enum class Case { kAllFinished, kOneUnfinished, kStaleCamera, kNoLevels };
+  for (const Case which :
+       {Case::kAllFinished, Case::kOneUnfinished, Case::kStaleCamera, Case::kNoLevels}) {
+    SCOPED_TRACE(static_cast<int>(which));
+    Tracker tracker = OpenCellTracker();
+    pipeline::OccupancySnapshot snap;
+    snap.bounds = bounds;
+    snap.depth = 7;
+    snap.health.cameras.resize(2);
+    for (pipeline::CameraHealth& c : snap.health.cameras) c.state = pipeline::CameraState::kOk;
+    if (which == Case::kStaleCamera) snap.health.cameras[1].state = pipeline::CameraState::kStale;
+    snap.complete = false;
+    snap.refined_cell_m = 4.0 / 64;  // Level 6: 6.25 cm, coarser than the voxel.
+    if (which != Case::kNoLevels) {
+      snap.root_levels.assign(512, 6);
+      for (int r = 0; r < 512; ++r) {
+        if (touches_person(r)) snap.root_levels[static_cast<std::size_t>(r)] = 7;
+      }
+      if (which == Case::kOneUnfinished) snap.root_levels[centre_root] = 6;
+    }
+    snap.occupied = BlobRuns(person);
+    for (int frame = 0; frame < 5; ++frame) {
+      snap.stamp_ns = 1'000'000'000 + StampNs(frame);
+      tracker.Update(snap);
+    }
+    const bool expected = which == Case::kAllFinished;
+    EXPECT_EQ(tracker.tracks().size(), expected ? 1u : 0u);
+    EXPECT_EQ(tracker.stats().births_by_root, expected ? 1u : 0u);
+    EXPECT_EQ(tracker.stats().cycles_with_births_by_root,
+              which == Case::kAllFinished || which == Case::kOneUnfinished ? 5u : 0u);
+    if (expected) EXPECT_LT((tracker.tracks()[0].centre_W - centre).norm(), 0.1);
+  }
+}
+
 TEST(TrackerTest, TracksFromSnapshots) {
   StaticScene scene;
   scene.cameras.push_back(scene::LookAtCamera({2, 2.01, 3.5}, {2, 2, 0}, 640, 480, 300));

@@ -123,6 +123,7 @@ int RunBench(const BenchFlags& f) {
   std::vector<double> written;
   std::vector<std::uint64_t> leaf_keys;
   std::vector<double> occupied_m3;    // With a deadline: what an abort leaves occupied.
+  std::vector<double> key_roots;      // With a deadline and a key level: roots refined to it.
   std::vector<double> refined_level;  // With a deadline: how far each update refined.
   // Per level: when the incremental updates that got there were complete to it.
   std::vector<double> level_done_ms[octree::UpdateStats::kLevels];
@@ -162,6 +163,11 @@ int RunBench(const BenchFlags& f) {
       if (f.deadline_ms > 0) {
         occupied_m3.push_back(engine.tree().Volume(octree::LeafState::kOccupied));
         refined_level.push_back(times.octree.refined_level);
+        if (f.key_level > 0) {
+          const auto levels = engine.tree().RootLevels();
+          key_roots.push_back(static_cast<double>(std::count_if(
+              levels.begin(), levels.end(), [&](std::uint8_t l) { return l >= f.key_level; })));
+        }
       }
     }
     const std::vector<Eigen::Vector3d> points =
@@ -223,6 +229,11 @@ int RunBench(const BenchFlags& f) {
       const FrameStats r = Summarise(refined_level);
       std::printf(", \"refined_level\": {\"median\": %.0f, \"min\": %.0f}", r.median,
                   *std::min_element(refined_level.begin(), refined_level.end()));
+      if (!key_roots.empty()) {
+        std::printf(", \"roots_at_key_level\": {\"median\": %.0f, \"min\": %.0f}",
+                    Summarise(key_roots).median,
+                    *std::min_element(key_roots.begin(), key_roots.end()));
+      }
     }
     if (!written.empty()) {
       std::printf(", \"leaves_written_per_frame_median\": %.0f", Summarise(written).median);
@@ -288,6 +299,12 @@ int RunBench(const BenchFlags& f) {
           f.depth, r.median,
           100.0 * pipeline::RefinedCellSize(s.bounds, static_cast<int>(r.median)), worst,
           100.0 * pipeline::RefinedCellSize(s.bounds, static_cast<int>(worst)));
+      if (!key_roots.empty()) {
+        // Octree::RootLevels: an aborted pass finishes some roots.
+        std::printf("  roots refined to the key level %d: median %.0f of %d, fewest %.0f\n",
+                    f.key_level, Summarise(key_roots).median, octree::Octree::kNumRoots,
+                    *std::min_element(key_roots.begin(), key_roots.end()));
+      }
     }
     if (f.coarse_first_depth > 0) {
       // What a deadline must allow for each level: the passes' completion times.
