@@ -181,6 +181,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
   const common::ImageU8* mask = &frame.grey;
   // A buffer of ours holding the mask, which the slot may take over whole.
   common::ImageU8* swappable = spare;
+  bool learning = false;  // The mask is the background model's learning one.
   if (frame.kind != capture::FrameKind::kMask) {
     // A frozen, black, saturated or moved camera certifies nothing: its
     // frames are dropped and fusion counts it as seeing nothing.
@@ -202,6 +203,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       }
     }
     const bool was_learning = c.background->learning();
+    learning = was_learning;
     if (frame.kind == capture::FrameKind::kRgb) {
       c.background->Apply(frame.rgb, &c.foreground);
     } else {
@@ -244,6 +246,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
   }
   slot.stamp_ns = frame.stamp_ns;
   slot.ready = SteadyClock::now();
+  slot.learning = learning;
   c.slot.Publish();
   c.frames.fetch_add(1, std::memory_order_relaxed);
 }
@@ -427,6 +430,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
               : c.seen     ? CameraState::kStale
                            : CameraState::kStarting;
     h.fault = fault;
+    h.learning = c.current != nullptr && c.current->learning;
     h.fps = c.fps;
     h.frame_age_ms = age_ms;
     h.frames = frames;

@@ -155,6 +155,7 @@ class Pipeline {
     common::ImageU8 mask;  // Pinhole (undistorted) mask.
     std::int64_t stamp_ns = 0;
     std::chrono::steady_clock::time_point ready;  // When it was published.
+    bool learning = false;  // From the background model's learning: all foreground.
   };
   struct CameraRuntime {
     geometry::CameraModel model;

@@ -31,6 +31,9 @@ struct CameraHealth {
   /// Image fault (capture::CameraFault: 0 none, 1 frozen, 2 black, 3 saturated,
   /// 4 moved); a faulty camera sees nothing, as a stale one.
   std::uint8_t fault = 0;
+  /// The frame used is one the background model was still learning from
+  /// (all foreground: this camera certifies nothing free through it).
+  bool learning = false;
   /// The source's transport counters (capture::TransportStats: GigE Vision;
   /// zero for other sources), totals over reconnections.
   std::uint64_t completed = 0;  ///< Complete frames the source delivered.
@@ -134,8 +137,9 @@ struct OccupancySnapshot {
 }
 
 /// Whether a snapshot holds the whole evidence a new track needs: every
-/// camera delivered (a camera that is out, or lags too far, sees nothing, so
-/// the others' silhouette cones stay occupied where it would have cut them:
+/// camera delivered, and none from its background model's learning (a camera
+/// that is out, lags too far or is still learning sees nothing, so the
+/// others' silhouette cones stay occupied where it would have cut them:
 /// person-sized blobs with nobody in them), and the update refined the cell
 /// to cells of at most one tracking voxel everywhere, from frames captured
 /// within max_skew_ms of each other (older frames are dilated by the
@@ -146,7 +150,7 @@ struct OccupancySnapshot {
                                          double max_skew_ms) {
   if (s.health.skew_ms > max_skew_ms) return false;
   for (const CameraHealth& c : s.health.cameras) {
-    if (c.state != CameraState::kOk) return false;
+    if (c.state != CameraState::kOk || c.learning) return false;
   }
   return s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m);
 }
@@ -169,7 +173,7 @@ inline constexpr int kRootsPerAxis = 8;
   if (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m) return false;  // Whole.
   if (s.health.skew_ms > max_skew_ms) return false;
   for (const CameraHealth& c : s.health.cameras) {
-    if (c.state != CameraState::kOk) return false;
+    if (c.state != CameraState::kOk || c.learning) return false;
   }
   bool any = false;
   for (std::size_t r = 0; r < roots->size(); ++r) {

@@ -462,9 +462,15 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   };
   const std::size_t all_cells = std::size_t{1} << (3 * options.publish_depth);
 
-  {  // The first start: the cell is empty while it learns.
+  {  // The first start: the cell is empty while it learns, and the cameras say so.
     auto first = make(dir.string());
-    run(*first, 0, options.background.learn_frames + 2, /*present=*/false);
+    for (int i = 0; i < options.background.learn_frames + 2; ++i) {
+      const auto s = frames.Cycle(*first, i, /*present=*/false);
+      ASSERT_NE(s, nullptr);
+      for (const CameraHealth& c : s->health.cameras) {
+        EXPECT_EQ(c.learning, i < options.background.learn_frames) << c.name << " frame " << i;
+      }
+    }
   }
   for (const sim::SceneCamera& c : scene->cameras) {
     EXPECT_TRUE(fs::exists(dir / ("background-" + c.model.name + ".bin"))) << c.model.name;

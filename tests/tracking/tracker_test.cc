@@ -490,8 +490,9 @@ std::vector<pipeline::GridRun> BlobRuns(const Ellipsoid& blob) {
 }
 
 // Births wait for a whole snapshot: a person-sized blob in a cycle with a
-// stale camera, with frames captured too far apart, or from an update
-// aborted above the tracking voxel starts nothing; the same blob in a whole
+// stale camera, with a camera still learning its background, with frames
+// captured too far apart, or from an update aborted above the tracking
+// voxel starts nothing; the same blob in a whole
 // cycle starts a track, which then follows its person through such cycles.
 TEST(TrackerTest, BirthsWaitForAWholeCycle) {
   Tracker tracker = OpenCellTracker();
@@ -509,6 +510,7 @@ TEST(TrackerTest, BirthsWaitForAWholeCycle) {
     snap.refined_cell_m = 4.0 / 128;
     snap.health.skew_ms = 0.0;
     snap.health.cameras[1].state = pipeline::CameraState::kOk;
+    snap.health.cameras[1].learning = false;
     spoil();
     snap.stamp_ns = 1'000'000'000 + StampNs(frame++);
     tracker.Update(snap);
@@ -516,9 +518,12 @@ TEST(TrackerTest, BirthsWaitForAWholeCycle) {
   };
   for (int k = 0; k < 10; ++k) {
     step([&] {
-      switch (k % 3) {
+      switch (k % 4) {
         case 0:
           snap.health.cameras[1].state = pipeline::CameraState::kStale;
+          break;
+        case 2:
+          snap.health.cameras[1].learning = true;
           break;
         case 1:
           snap.health.skew_ms = 33.0;
@@ -545,7 +550,8 @@ TEST(TrackerTest, BirthsWaitForAWholeCycle) {
 // From an update aborted short of the tracking voxel, a track starts where
 // the update finished the octree roots to it (RootsWholeForBirths): the
 // person's roots all finished starts a track; one of them not finished, a
-// stale camera, or no root levels at all starts none.
+// stale camera, a camera whose background model is still learning, or no
+// root levels at all starts none.
 TEST(TrackerTest, BirthsFromTheRootsAnAbortedUpdateFinished) {
   const Vector3d centre(1.5, 1.0, 0.9);
   const Ellipsoid person = Person(centre);
@@ -560,9 +566,9 @@ TEST(TrackerTest, BirthsFromTheRootsAnAbortedUpdateFinished) {
   };
   const int centre_root = 3 + 8 * 2 + 64 * 1;  // (1.5, 1.0, 0.9) lies in root (3, 2, 1).
   ASSERT_TRUE(touches_person(centre_root));
-  enum class Case { kAllFinished, kOneUnfinished, kStaleCamera, kNoLevels };
-  for (const Case which :
-       {Case::kAllFinished, Case::kOneUnfinished, Case::kStaleCamera, Case::kNoLevels}) {
+  enum class Case { kAllFinished, kOneUnfinished, kStaleCamera, kLearningCamera, kNoLevels };
+  for (const Case which : {Case::kAllFinished, Case::kOneUnfinished, Case::kStaleCamera,
+                           Case::kLearningCamera, Case::kNoLevels}) {
     SCOPED_TRACE(static_cast<int>(which));
     Tracker tracker = OpenCellTracker();
     pipeline::OccupancySnapshot snap;
@@ -571,6 +577,7 @@ TEST(TrackerTest, BirthsFromTheRootsAnAbortedUpdateFinished) {
     snap.health.cameras.resize(2);
     for (pipeline::CameraHealth& c : snap.health.cameras) c.state = pipeline::CameraState::kOk;
     if (which == Case::kStaleCamera) snap.health.cameras[1].state = pipeline::CameraState::kStale;
+    if (which == Case::kLearningCamera) snap.health.cameras[1].learning = true;
     snap.complete = false;
     snap.refined_cell_m = 4.0 / 64;  // Level 6: 6.25 cm, coarser than the voxel.
     if (which != Case::kNoLevels) {
@@ -590,7 +597,9 @@ TEST(TrackerTest, BirthsFromTheRootsAnAbortedUpdateFinished) {
     EXPECT_EQ(tracker.stats().births_by_root, expected ? 1u : 0u);
     EXPECT_EQ(tracker.stats().cycles_with_births_by_root,
               which == Case::kAllFinished || which == Case::kOneUnfinished ? 5u : 0u);
-    if (expected) EXPECT_LT((tracker.tracks()[0].centre_W - centre).norm(), 0.1);
+    if (expected) {
+      EXPECT_LT((tracker.tracks()[0].centre_W - centre).norm(), 0.1);
+    }
   }
 }
 
