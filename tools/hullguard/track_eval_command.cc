@@ -75,7 +75,7 @@ void FillSnapshot(const octree::Octree& tree, int publish_depth, std::vector<std
     const std::size_t i = x + static_cast<std::size_t>(n) * (y + static_cast<std::size_t>(n) * z);
     (*bits)[i >> 6] |= std::uint64_t{1} << (i & 63);
   };
-  tree.ForEachLeaf([&](const octree::Cell& cell, octree::LeafState state) {
+  tree.ForEachCellUpTo(p, [&](const octree::Cell& cell, octree::LeafState state) {
     if (state != octree::LeafState::kOccupied) return;
     if (cell.level >= p) {
       const int shift = cell.level - p;
@@ -415,6 +415,8 @@ int RunTrackEval(const TrackEvalFlags& f) {
     snapshot.stamp_ns = static_cast<std::int64_t>(std::llround(t * 1e9));
     snapshot.complete = !times.octree.aborted;
     snapshot.refined_cell_m = pipeline::RefinedCellSize(s.bounds, times.octree.refined_level);
+    const auto root_levels = engine.tree().RootLevels();
+    snapshot.root_levels.assign(root_levels.begin(), root_levels.end());
 
     const double cpu0 = ThreadCpuMs();
     const auto wall0 = std::chrono::steady_clock::now();
