@@ -20,6 +20,7 @@
 #include "geometry/mesh.h"
 #include "octree/octree.h"
 #include "pipeline/blob_filter.h"
+#include "pipeline/published_grid.h"
 #include "pipeline/snapshot.h"
 #include "silhouette/background_model.h"
 #include "silhouette/quadtree.h"
@@ -224,7 +225,6 @@ class Pipeline {
       std::int64_t now_ns, const octree::UpdateControl& control, double fps_window_s,
       std::optional<std::chrono::steady_clock::time_point> received_by = std::nullopt);
   std::shared_ptr<OccupancySnapshot> FreeSnapshot();
-  void FillCells(OccupancySnapshot* snapshot);
 
   PipelineOptions options_;
   std::vector<std::unique_ptr<CameraRuntime>> cameras_;
@@ -237,7 +237,7 @@ class Pipeline {
   std::unique_ptr<std::atomic<std::uint32_t>[]> signals_;  // One per worker, or one shared.
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
   std::vector<std::shared_ptr<OccupancySnapshot>> pool_;
-  std::vector<std::uint64_t> occupied_bits_, occluded_bits_;  // Publishing grid bitsets.
+  std::unique_ptr<PublishedGrid> grid_;      // The snapshots' cells from the tree.
   std::unique_ptr<BlobFilter> blob_filter_;  // With options_.knowledge_filter_m3 > 0.
   double published_cell_m3_ = 0.0;
   std::atomic<std::shared_ptr<const OccupancySnapshot>> latest_;

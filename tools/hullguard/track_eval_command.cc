@@ -21,6 +21,7 @@
 #include "hullguard/commands.h"
 #include "hullguard/frame_stats.h"
 #include "hullguard/scene_engine.h"
+#include "pipeline/published_grid.h"
 #include "pipeline/snapshot.h"
 #include "sim/scene.h"
 #include "tracking/clear_mot.h"
@@ -61,60 +62,6 @@ double Mean(const std::vector<double>& v) {
   double s = 0.0;
   for (const double x : v) s += x;
   return s / static_cast<double>(v.size());
-}
-
-/// The octree's leaves at the publishing resolution as the pipeline publishes
-/// them: a published cell is occupied when any occupied leaf overlaps it.
-/// `bits` is scratch of (2^publish_depth)^3 bits.
-void FillSnapshot(const octree::Octree& tree, int publish_depth, std::vector<std::uint64_t>* bits,
-                  pipeline::OccupancySnapshot* snapshot) {
-  const int p = publish_depth;
-  const std::uint32_t n = 1U << p;
-  bits->assign((static_cast<std::size_t>(n) * n * n + 63) / 64, 0);
-  auto mark = [&](std::uint32_t x, std::uint32_t y, std::uint32_t z) {
-    const std::size_t i = x + static_cast<std::size_t>(n) * (y + static_cast<std::size_t>(n) * z);
-    (*bits)[i >> 6] |= std::uint64_t{1} << (i & 63);
-  };
-  tree.ForEachCellUpTo(p, [&](const octree::Cell& cell, octree::LeafState state) {
-    if (state != octree::LeafState::kOccupied) return;
-    if (cell.level >= p) {
-      const int shift = cell.level - p;
-      mark(cell.x >> shift, cell.y >> shift, cell.z >> shift);
-      return;
-    }
-    const std::uint32_t span = 1U << (p - cell.level);
-    for (std::uint32_t z = cell.z * span; z < (cell.z + 1) * span; ++z) {
-      for (std::uint32_t y = cell.y * span; y < (cell.y + 1) * span; ++y) {
-        for (std::uint32_t x = cell.x * span; x < (cell.x + 1) * span; ++x) mark(x, y, z);
-      }
-    }
-  });
-  snapshot->bounds = tree.config().bounds;
-  snapshot->depth = p;
-  snapshot->occupied.clear();
-  snapshot->occluded.clear();
-  for (std::uint32_t z = 0; z < n; ++z) {
-    for (std::uint32_t y = 0; y < n; ++y) {
-      const std::size_t row = static_cast<std::size_t>(n) * (y + static_cast<std::size_t>(n) * z);
-      std::uint32_t x = 0;
-      while (x < n) {
-        auto set = [&](std::uint32_t xx) {
-          const std::size_t i = row + xx;
-          return ((*bits)[i >> 6] >> (i & 63) & 1U) != 0;
-        };
-        if (!set(x)) {
-          ++x;
-          continue;
-        }
-        std::uint32_t end = x + 1;
-        while (end < n && set(end)) ++end;
-        snapshot->occupied.push_back({static_cast<std::uint16_t>(x), static_cast<std::uint16_t>(y),
-                                      static_cast<std::uint16_t>(z),
-                                      static_cast<std::uint16_t>(end - x)});
-        x = end;
-      }
-    }
-  }
 }
 
 /// Scene time when the last person's script ends.
@@ -388,7 +335,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
 
   tracking::ClearMot mot(tracking::ClearMotOptions{f.threshold_m});
   pipeline::OccupancySnapshot snapshot;
-  std::vector<std::uint64_t> bits;
+  pipeline::PublishedGrid grid(f.publish_depth);
   std::vector<double> track_ms, track_cpu_ms, per_person_ms, per_person_cpu_ms, octree_ms,
       unknown_voxels;
   std::vector<PersonStats> people(s.people.size());
@@ -410,7 +357,10 @@ int RunTrackEval(const TrackEvalFlags& f) {
     const FrameTimes times = engine.Step(t, {}, f.deadline_ms);
     if (frame > 0) octree_ms.push_back(times.octree.update_ms);
     aborted += times.octree.aborted;
-    FillSnapshot(engine.tree(), f.publish_depth, &bits, &snapshot);
+    // As the pipeline publishes it.
+    grid.Fill(engine.tree(), &snapshot);
+    snapshot.bounds = s.bounds;
+    snapshot.depth = f.publish_depth;
     snapshot.sequence = static_cast<std::uint64_t>(frame);
     snapshot.stamp_ns = static_cast<std::int64_t>(std::llround(t * 1e9));
     snapshot.complete = !times.octree.aborted;
