@@ -959,7 +959,9 @@ TEST(OctreeRootLevelsTest, AbortedPassesFinishRootsInTurnAndEachIsExactToItsLeve
     const UpdateStats stats = tree.Update(qt.ptrs, control);
     const std::span<const std::uint8_t> levels = tree.RootLevels();
     ASSERT_EQ(levels.size(), static_cast<std::size_t>(Octree::kNumRoots));
-    if (complete) ASSERT_FALSE(stats.aborted);
+    if (complete) {
+      ASSERT_FALSE(stats.aborted);
+    }
     if (!stats.aborted) {
       for (const std::uint8_t l : levels) ASSERT_EQ(l, kDepth);
       continue;
