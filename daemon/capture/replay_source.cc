@@ -36,15 +36,13 @@ ReplaySource::ReplaySource(RecordingCamera recording, SimClock clock, const Repl
   }
   if (options.preload) {
     preloaded_.resize(static_cast<std::size_t>(count));
-    loaded_.assign(static_cast<std::size_t>(count), false);
     for (int i = 0; i < count; ++i) {
       Frame& frame = preloaded_[static_cast<std::size_t>(i)];
       if (!LoadRecordedFrame(recording_, static_cast<std::size_t>(i), &frame, &file_bytes_,
                              &path_)) {
-        frame = Frame{};  // Counted when it comes round.
+        frame = Frame{};  // No pixels: counted when it comes round.
         continue;
       }
-      loaded_[static_cast<std::size_t>(i)] = true;
       preloaded_bytes_ += frame.grey.pixels.size() + frame.rgb.pixels.size();
     }
     file_bytes_ = {};
@@ -77,11 +75,11 @@ bool ReplaySource::Load(std::int64_t n, Frame* frame) {
   const int i = FrameAt(n);
   bool ok;
   if (!preloaded_.empty()) {
-    ok = loaded_[static_cast<std::size_t>(i)];
+    const Frame& stored = preloaded_[static_cast<std::size_t>(i)];
+    ok = !stored.grey.pixels.empty() || !stored.rgb.pixels.empty();
     if (ok) {
       // Copy-assignment keeps the destination's buffers: no allocation once
       // they have the size.
-      const Frame& stored = preloaded_[static_cast<std::size_t>(i)];
       frame->kind = stored.kind;
       frame->grey = stored.grey;
       frame->rgb = stored.rgb;

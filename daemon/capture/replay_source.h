@@ -99,8 +99,7 @@ class ReplaySource : public CameraSource {
   int loop_first_ = 0;               // First frame of each repetition after the first.
   std::int64_t loop_period_ns_ = 0;  // How much later each repetition plays.
   std::uint64_t index_stride_ = 0;   // Frame counter added per repetition.
-  std::vector<Frame> preloaded_;     // With preload: every frame (empty where unreadable).
-  std::vector<bool> loaded_;         // With preload: which frames read.
+  std::vector<Frame> preloaded_;     // With preload: every frame (no pixels where unreadable).
   std::size_t preloaded_bytes_ = 0;
   std::int64_t next_ = 0;                  // Next frame of the play.
   std::vector<unsigned char> file_bytes_;  // Reused read buffer.

@@ -428,6 +428,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
   snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
   snapshot->complete = !stats.aborted;
   snapshot->refined_cell_m = RefinedCellSize(options_.bounds, stats.refined_level);
+  static_assert(kRootsPerAxis * kRootsPerAxis * kRootsPerAxis == octree::Octree::kNumRoots);
   const std::span<const std::uint8_t> root_levels = tree_->RootLevels();
   snapshot->root_levels.assign(root_levels.begin(), root_levels.end());  // Capacity kept.
   snapshot->bounds = options_.bounds;

@@ -146,13 +146,22 @@ struct OccupancySnapshot {
 /// distance a person may have moved meanwhile, which fattens every cone the
 /// same way). Tracks follow their people through other snapshots
 /// (RefinedForTracking); births wait.
-[[nodiscard]] inline bool WholeForBirths(const OccupancySnapshot& s, double voxel_m,
-                                         double max_skew_ms) {
+/// The cameras' part of it: every camera ok and none learning, frames within
+/// max_skew_ms.
+[[nodiscard]] inline bool CamerasWholeForBirths(const OccupancySnapshot& s, double max_skew_ms) {
   if (s.health.skew_ms > max_skew_ms) return false;
   for (const CameraHealth& c : s.health.cameras) {
     if (c.state != CameraState::kOk || c.learning) return false;
   }
-  return s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m);
+  return true;
+}
+
+/// The whole-snapshot rule above: the cameras (CamerasWholeForBirths) and
+/// the refinement everywhere.
+[[nodiscard]] inline bool WholeForBirths(const OccupancySnapshot& s, double voxel_m,
+                                         double max_skew_ms) {
+  return CamerasWholeForBirths(s, max_skew_ms) &&
+         (s.complete || (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m));
 }
 
 /// Octree roots per axis (root_levels).
@@ -171,10 +180,7 @@ inline constexpr int kRootsPerAxis = 8;
   roots->fill(false);
   if (s.complete || s.root_levels.size() != roots->size()) return false;
   if (s.refined_cell_m > 0.0 && s.refined_cell_m <= voxel_m) return false;  // Whole.
-  if (s.health.skew_ms > max_skew_ms) return false;
-  for (const CameraHealth& c : s.health.cameras) {
-    if (c.state != CameraState::kOk || c.learning) return false;
-  }
+  if (!CamerasWholeForBirths(s, max_skew_ms)) return false;
   bool any = false;
   for (std::size_t r = 0; r < roots->size(); ++r) {
     const double cell = RefinedCellSize(s.bounds, s.root_levels[r]);
