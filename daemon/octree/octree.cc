@@ -213,9 +213,12 @@ class Octree::Updater {
     }
     const silhouette::SilhouetteQuadtree* m = masks_[c];
     if (m == nullptr) return false;  // Still lost: its verdict (hidden) cannot change.
-    if (fp.side != geometry::Footprint::Side::kInFront) {
-      *settled = false;  // A sub-box may lie in front.
-      return false;      // Verdict is geometric.
+    if (fp.side == geometry::Footprint::Side::kBehind) return false;  // So is every sub-box.
+    if (fp.side == geometry::Footprint::Side::kStraddling) {
+      // The verdict is geometric and cannot change, but a sub-box may lie in
+      // front of the camera and see a change: the caller must look below.
+      *settled = false;
+      return false;
     }
     const CameraView& view = tree_.cameras_[c];
     const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
@@ -433,6 +436,9 @@ class Octree::Updater {
     geometry::Footprint* fps = k.footprints[cell.level];
     std::uint32_t recompute = 0;
     std::uint32_t child_unchanged = unchanged;
+    // Cameras whose verdict on this box cannot change (it straddles their
+    // camera plane) while a sub-box's may: the children must be visited.
+    std::uint32_t unsettled = 0;
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) continue;
       fps[c] = footprint(c);
@@ -443,13 +449,17 @@ class Octree::Updater {
       bool settled = false;
       // A kCoarse node's verdicts are current (the pass that stopped at it
       // computed them); only its children need to know what changed.
-      if (ChangedIn(c, fps[c], unchanged, since, forced, &settled) && !coarse_here) {
-        recompute |= 1u << c;
+      const bool changed = ChangedIn(c, fps[c], unchanged, since, forced, &settled);
+      if (changed && !coarse_here) recompute |= 1u << c;
+      if (settled) {
+        child_unchanged |= 1u << c;
+      } else if (!changed) {
+        unsettled |= 1u << c;
       }
-      if (settled) child_unchanged |= 1u << c;
     }
+    const bool has_children = node.state == kInner || node.state == kPackedInner;
     if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
-        (node.flags & kHasPending) == 0) {
+        (unsettled == 0 || !has_children) && (node.flags & kHasPending) == 0) {
       if (pending) N(index).flags &= kHoldsOccupied;
       return ReadsOccupied(N(index));  // Subtree still exact.
     }

@@ -152,7 +152,7 @@ TEST(BoxProjectorTest, FootprintEqualsIndependentCornerProjection) {
 
 TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxesAndCertifiesFreeAgrees) {
   int seen_clear = 0, seen_behind = 0, seen_partial = 0, seen_free = 0;
-  for (int seed = 0; seed < 8; ++seed) {
+  for (int seed = 0; seed < testing::SoakSeeds(8); ++seed) {
     testing::RandomSceneOptions opt;
     opt.num_cameras = 4;
     opt.num_objects = 3;

@@ -268,7 +268,7 @@ TEST_P(RandomSceneTest, ObjectsNeverFreeAndOctreeEqualsDenseCarve) {
   EXPECT_GT(checked, 100);
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, RandomSceneTest, ::testing::Range(0, 24));
+INSTANTIATE_TEST_SUITE_P(Seeds, RandomSceneTest, ::testing::Range(0, testing::SoakSeeds(24)));
 
 // Smallest camera depth (z, m) of any point of the shape.
 double NearestDepth(const geometry::CameraModel& cam, const scene::Shape& shape) {
@@ -404,7 +404,7 @@ geometry::TriangleMesh RandomTetrahedron(const Eigen::Vector3d& centre, std::mt1
 TEST(OctreeOccludedMasksTest, ObjectsBehindObstaclesAreNeverFree) {
   HiddenPixels hidden;
   std::int64_t hidden_points = 0, hidden_occluded = 0, freed_naively = 0;
-  for (int seed = 0; seed < 20; ++seed) {
+  for (int seed = 0; seed < testing::SoakSeeds(20); ++seed) {
     testing::RandomSceneOptions opt;
     opt.num_cameras = 4 + seed % 3;
     opt.num_objects = 3;
@@ -510,8 +510,8 @@ TEST_P(OctreeSequenceTest, IncrementalEqualsFromScratchAndThreadsAgree) {
     Quadtrees fresh(scene.cameras);
     fresh.Build(masks);
     const UpdateStats full = scratch.Update(fresh.ptrs);
-    ASSERT_EQ(testing::Leaves(incremental), testing::Leaves(scratch)) << "frame " << frame;
-    ASSERT_EQ(testing::Leaves(incremental_mt), testing::Leaves(scratch)) << "frame " << frame;
+    ASSERT_EQ(testing::LeafDifference(incremental, scratch), "") << "frame " << frame;
+    ASSERT_EQ(testing::LeafDifference(incremental_mt, scratch), "") << "frame " << frame;
     if (frame > 0) {
       EXPECT_LT(inc.verdicts_computed, full.verdicts_computed) << frame;
     }
@@ -544,9 +544,9 @@ TEST_P(OctreeSequenceTest, MissedVersionsAreFoundAndNotRecomputedWhole) {
     Quadtrees fresh(scene.cameras);
     fresh.Build(masks);
     scratch.Update(fresh.ptrs);
-    ASSERT_EQ(testing::Leaves(incremental), testing::Leaves(scratch)) << "frame " << frame;
+    ASSERT_EQ(testing::LeafDifference(incremental, scratch), "") << "frame " << frame;
     const UpdateStats whole = replaced.Update(fresh.ptrs);
-    ASSERT_EQ(testing::Leaves(replaced), testing::Leaves(scratch)) << "frame " << frame;
+    ASSERT_EQ(testing::LeafDifference(replaced, scratch), "") << "frame " << frame;
     if (frame > 0) {
       // Less than half the work of a whole update in the first scene; in the
       // others the moving object's share is larger (about 60% in scene 93 right
@@ -559,7 +559,7 @@ TEST_P(OctreeSequenceTest, MissedVersionsAreFoundAndNotRecomputedWhole) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, OctreeSequenceTest, ::testing::Range(0, 3));
+INSTANTIATE_TEST_SUITE_P(Seeds, OctreeSequenceTest, ::testing::Range(0, testing::SoakSeeds(3)));
 
 // Aborting at random moments never frees anything the exact result keeps
 // occupied, and a completed update afterwards equals a from-scratch build.
@@ -603,13 +603,15 @@ TEST_P(OctreeAbortTest, AbortAnywhereStaysConservativeAndRecovers) {
     ExpectObjectsNotFree(tree, scene.objects, rng, 300);
     if (complete) {
       EXPECT_FALSE(stats.aborted);
-      ASSERT_EQ(testing::Leaves(tree), testing::Leaves(exact)) << "frame " << frame;
+      ASSERT_EQ(testing::LeafDifference(tree, exact), "") << "frame " << frame;
     }
   }
-  EXPECT_GT(aborted_frames, 15);  // Of 23 frames with a node budget.
+  // Of 23 frames with a node budget, the updates of small scenes can need less
+  // (8 or more in each of 125 seeds, HG_SOAK=25).
+  EXPECT_GE(aborted_frames, 5);
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, OctreeAbortTest, ::testing::Range(0, 5));
+INSTANTIATE_TEST_SUITE_P(Seeds, OctreeAbortTest, ::testing::Range(0, testing::SoakSeeds(5)));
 
 // The tree read into a grid of `level` as the daemon publishes it: a cell is
 // occupied if a leaf overlapping it reads occupied, else occluded if one reads
@@ -788,7 +790,7 @@ TEST(OctreeNodeStoreTest, AFullStoreLeavesNodesOccupiedAndRecovers) {
   Quadtrees fresh(scene.cameras);
   fresh.Build(empty);
   exact.Update(fresh.ptrs);
-  EXPECT_EQ(testing::Leaves(tree), testing::Leaves(exact));
+  EXPECT_EQ(testing::LeafDifference(tree, exact), "");
 }
 
 // Another thread raises UpdateControl::abort while an update runs (as a
@@ -852,7 +854,7 @@ TEST(OctreeAbortFlagTest, RaisedByAnotherThreadMidUpdateStaysConservativeAndReco
       ExpectObjectsNotFree(tree, scene.objects, rng, 300);
       const UpdateStats done = tree.Update(qt.ptrs);
       EXPECT_FALSE(done.aborted);
-      ASSERT_EQ(testing::Leaves(tree), testing::Leaves(exact)) << "fraction " << fraction;
+      ASSERT_EQ(testing::LeafDifference(tree, exact), "") << "fraction " << fraction;
     }
   }
   EXPECT_GE(aborted_midway, 2);
@@ -895,7 +897,7 @@ TEST_P(OctreeCoarseFirstAbortTest, SameLeavesWhenCompleteAndCoarseResultWhenAbor
       ASSERT_FALSE(stats.aborted);
       ASSERT_EQ(stats.refined_level, kDepth);
       ASSERT_EQ(stats.nodes_pending, 0);
-      ASSERT_EQ(testing::Leaves(coarse_first), testing::Leaves(plain)) << "frame " << frame;
+      ASSERT_EQ(testing::LeafDifference(coarse_first, plain), "") << "frame " << frame;
     }
     ExpectFreeOnlyWhereExactIsFree(coarse_first, plain, frame);
     ExpectObjectsNotFree(coarse_first, scene.objects, rng, 200);
@@ -927,7 +929,8 @@ TEST_P(OctreeCoarseFirstAbortTest, SameLeavesWhenCompleteAndCoarseResultWhenAbor
   EXPECT_GT(aborted_after_coarse, frames / 4);
 }
 
-INSTANTIATE_TEST_SUITE_P(Seeds, OctreeCoarseFirstAbortTest, ::testing::Range(0, 3));
+INSTANTIATE_TEST_SUITE_P(Seeds, OctreeCoarseFirstAbortTest,
+                         ::testing::Range(0, testing::SoakSeeds(3)));
 
 // Per root, what an aborted update left exact (Octree::RootLevels): a root at
 // level L frees everything a complete tree of depth L frees inside it; every
@@ -1083,7 +1086,42 @@ TEST(OctreeLostCameraTest, LosingACameraOnlyGrowsOccupiedSpace) {
   tree.Update(qt.ptrs);
   Octree fresh({scene.bounds, 6, 1, 0}, views);
   fresh.Update(qt.ptrs);
-  EXPECT_EQ(testing::Leaves(tree), testing::Leaves(fresh));
+  EXPECT_EQ(testing::LeafDifference(tree, fresh), "");
+}
+
+}  // namespace
+}  // namespace hg::octree
+
+namespace hg::octree {
+namespace {
+
+// A camera inside the cell: the boxes around it straddle its camera plane, so
+// their verdict in it is geometric and cannot change, while the sub-boxes in
+// front of it see every change. An object that appears in such a sub-box,
+// seen by that camera alone, must not stay free.
+TEST(OctreeStraddlingTest, ChangesBelowABoxAcrossTheCameraPlaneAreFound) {
+  const common::Box3 bounds{{0, 0, 0}, {2, 2, 2}};
+  const Eigen::Vector3d eye(1.02, 1.03, 1.01);
+  const std::vector<geometry::CameraModel> cameras = {
+      scene::LookAtCamera(eye, eye + Eigen::Vector3d::UnitX(), 160, 120, 100.0)};
+  const auto views = testing::MakeViews(cameras, {});
+  const Eigen::Vector3d p = eye + Eigen::Vector3d(0.18, 0.0, 0.0);  // In the camera's root.
+  Quadtrees qt(cameras);
+  Octree tree({bounds, 6, 1, /*boundary_coarsening=*/0}, views);
+  qt.Build(testing::RenderMasks(cameras, {}));
+  tree.Update(qt.ptrs);
+  ASSERT_EQ(tree.StateAt(p), PointState::kFree);  // The camera certifies the empty cell there.
+
+  const std::vector<scene::Shape> objects = {scene::Sphere{p, 0.02}};
+  const auto masks = testing::RenderMasks(cameras, objects);
+  qt.Build(masks);
+  tree.Update(qt.ptrs);
+  EXPECT_NE(tree.StateAt(p), PointState::kFree);
+  Octree scratch({bounds, 6, 1, /*boundary_coarsening=*/0}, views);
+  Quadtrees fresh(cameras);
+  fresh.Build(masks);
+  scratch.Update(fresh.ptrs);
+  EXPECT_EQ(testing::LeafDifference(tree, scratch), "");
 }
 
 }  // namespace

@@ -85,7 +85,7 @@ TEST(OctreeOcclusionTest, ObjectSeenOnlyThroughObstacleIsOccluded) {
 // Distorting lenses: masks taken through the lens and undistorted conservatively
 // still keep every object point occupied.
 TEST(OctreeDistortionTest, DistortedCamerasStayConservative) {
-  for (int seed = 0; seed < 6; ++seed) {
+  for (int seed = 0; seed < testing::SoakSeeds(6); ++seed) {
     testing::RandomSceneOptions opt;
     opt.num_cameras = 4;
     opt.num_objects = 3;

@@ -111,7 +111,7 @@ void ExpectContainsExact(const common::ImageU8& fast, const common::ImageU8& exa
 
 TEST(MaskRendererTest, ContainsTheExactMaskPinhole) {
   long long total_exact = 0;
-  for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+  for (std::uint64_t seed = 1; seed <= 8u * static_cast<unsigned>(testing::SoakFactor()); ++seed) {
     testing::RandomSceneOptions options;
     options.num_cameras = 3;
     options.width = 320;

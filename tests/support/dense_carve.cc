@@ -1,6 +1,7 @@
 #include "support/dense_carve.h"
 
 #include <algorithm>
+#include <sstream>
 
 #include "geometry/footprint.h"
 
@@ -103,6 +104,28 @@ std::vector<std::pair<octree::Cell, octree::LeafState>> Leaves(const octree::Oct
   std::vector<std::pair<octree::Cell, octree::LeafState>> out;
   tree.ForEachLeaf([&](const octree::Cell& c, octree::LeafState s) { out.emplace_back(c, s); });
   return out;
+}
+
+std::string LeafDifference(const octree::Octree& a, const octree::Octree& b) {
+  const auto la = Leaves(a);
+  const auto lb = Leaves(b);
+  if (la == lb) return "";
+  std::ostringstream out;
+  out << la.size() << " leaves against " << lb.size();
+  auto describe = [&](const std::pair<octree::Cell, octree::LeafState>& leaf) {
+    const octree::Cell& c = leaf.first;
+    out << "level " << c.level << " (" << c.x << ", " << c.y << ", " << c.z << ") "
+        << (leaf.second == octree::LeafState::kFree       ? "free"
+            : leaf.second == octree::LeafState::kOccupied ? "occupied"
+                                                          : "occluded");
+  };
+  std::size_t i = 0;
+  while (i < la.size() && i < lb.size() && la[i] == lb[i]) ++i;
+  out << "; first difference at leaf " << i << ": ";
+  if (i < la.size()) describe(la[i]);
+  out << " against ";
+  if (i < lb.size()) describe(lb[i]);
+  return out.str();
 }
 
 }  // namespace hg::testing

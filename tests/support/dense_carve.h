@@ -4,6 +4,7 @@
 /// over the pixels of plain masks and depth maps (no quadtree, no pyramid).
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "common/box.h"
@@ -36,5 +37,9 @@ DenseGrid Rasterize(const octree::Octree& tree);
 
 /// Leaves of a tree in visiting order, for exact structural comparisons.
 std::vector<std::pair<octree::Cell, octree::LeafState>> Leaves(const octree::Octree& tree);
+
+/// Empty when the two trees have the same leaves; otherwise the leaf counts and
+/// the first leaves that differ, readable in a test failure.
+std::string LeafDifference(const octree::Octree& a, const octree::Octree& b);
 
 }  // namespace hg::testing

@@ -1,12 +1,31 @@
 #include "support/random_scene.h"
 
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 
 #include <Eigen/Geometry>
 
 #include "scene/exact_mask.h"
 
 namespace hg::testing {
+
+int SoakFactor() {
+  static const int factor = [] {
+    const char* text = std::getenv("HG_SOAK");
+    if (text == nullptr || *text == '\0') return 1;
+    char* end = nullptr;
+    const long value = std::strtol(text, &end, 10);
+    if (*end != '\0' || value < 1 || value > 100000) {
+      std::fprintf(stderr, "HG_SOAK must be a positive integer, not '%s'\n", text);
+      std::exit(2);
+    }
+    return static_cast<int>(value);
+  }();
+  return factor;
+}
+
+int SoakSeeds(int seeds) { return seeds * SoakFactor(); }
 
 scene::Shape RandomObject(std::mt19937_64& rng, const common::Box3& bounds) {
   std::uniform_real_distribution<double> u01(0.0, 1.0);

@@ -34,6 +34,14 @@ struct RandomScene {
   std::vector<geometry::TriangleMesh> obstacles;
 };
 
+/// How many times more seeds the seeded property tests run: the environment
+/// variable HG_SOAK, a positive integer (default 1), for long runs that hunt
+/// rare cases (tests/README.md). Anything else there stops the test binary.
+int SoakFactor();
+
+/// `seeds` times SoakFactor(): the seed count of a seeded property test.
+int SoakSeeds(int seeds);
+
 /// A random scene in the cell [0, 2]^3: cameras on a shell around it looking at
 /// random points near the middle (some see part of the cell outside the image,
 /// some stand inside the cell's bounding sphere), objects inside the cell.
