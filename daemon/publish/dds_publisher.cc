@@ -139,10 +139,12 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   occ.complete = snapshot.complete;
   occ.refined_cell_m = static_cast<float>(snapshot.refined_cell_m);
   for (int i = 0; i < 3; ++i) {
-    occ.bounds_min[i] = static_cast<float>(snapshot.bounds.min[i]);
-    occ.bounds_max[i] = static_cast<float>(snapshot.bounds.max[i]);
+    occ.bounds_min[i] = snapshot.bounds.min[i];
+    occ.bounds_max[i] = snapshot.bounds.max[i];
   }
   occ.depth = static_cast<std::uint8_t>(snapshot.depth);
+  occ.knowledge_filter = snapshot.health.knowledge_filter;
+  occ.filtered_m3 = static_cast<float>(snapshot.health.filtered_m3);
   FillCells(snapshot.occupied, occ.occupied, s.occupied);
   FillCells(snapshot.occluded, occ.occluded, s.occluded);
 

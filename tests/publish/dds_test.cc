@@ -44,8 +44,9 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   s.stamp_ns = 1'700'000'000'000'000'000LL + static_cast<std::int64_t>(seed);
   s.complete = (seed % 2) == 0;
   s.refined_cell_m = s.complete ? 0.03125 : 0.0625;
-  s.bounds.min = {-2.5, -1.25, 0.0};
-  s.bounds.max = {2.5, 3.75, 2.5};
+  // Not representable as floats: the sample carries the daemon's bounds exactly.
+  s.bounds.min = {-2.3, -1.1, 0.1};
+  s.bounds.max = {2.7, 3.9, 2.9};
   s.depth = 9;
   auto fill = [&](std::vector<pipeline::GridRun>& cells, std::size_t n) {
     cells.resize(n);
@@ -57,6 +58,8 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   fill(s.occupied, occupied);
   fill(s.occluded, occluded);
   s.health.degraded = true;
+  s.health.knowledge_filter = (seed % 2) == 1;
+  s.health.filtered_m3 = s.health.knowledge_filter ? 0.0125 : 0.0;
   s.health.cameras = {
       {"cam_north", pipeline::CameraState::kOk, 29.5, 12.25, 1000, 3, 1},
       {"cam_south", pipeline::CameraState::kStale, 0.0, 450.5, 880, 0, 0},
@@ -178,9 +181,11 @@ void ExpectSameContent(const pipeline::OccupancySnapshot& sent, const ReceivedOc
   EXPECT_EQ(occ.header.refined_cell_m, static_cast<float>(sent.refined_cell_m));
   EXPECT_EQ(occ.header.depth, sent.depth);
   for (int i = 0; i < 3; ++i) {
-    EXPECT_EQ(occ.header.bounds_min[i], static_cast<float>(sent.bounds.min[i]));
-    EXPECT_EQ(occ.header.bounds_max[i], static_cast<float>(sent.bounds.max[i]));
+    EXPECT_EQ(occ.header.bounds_min[i], sent.bounds.min[i]);
+    EXPECT_EQ(occ.header.bounds_max[i], sent.bounds.max[i]);
   }
+  EXPECT_EQ(occ.header.knowledge_filter, sent.health.knowledge_filter);
+  EXPECT_EQ(occ.header.filtered_m3, static_cast<float>(sent.health.filtered_m3));
   ExpectSameCells(sent.occupied, occ.occupied);
   ExpectSameCells(sent.occluded, occ.occluded);
 
