@@ -55,6 +55,11 @@ class CameraHealthMonitor {
   /// Checks one frame and returns the camera's fault now.
   CameraFault Check(const Frame& frame);
   [[nodiscard]] CameraFault fault() const { return fault_; }
+  /// The last frame checked repeats the one before, sample for sample: it
+  /// brings nothing new (a real sensor's noise differs from frame to frame),
+  /// so it must not count as a fresh view of the cell. Frozen follows after
+  /// `frozen_frames` of these in a row.
+  [[nodiscard]] bool repeated() const { return identical_run_ > 0; }
   /// Share of the reference edges found in the last frame (1 before the
   /// reference exists).
   [[nodiscard]] double edges_kept() const { return edges_kept_; }

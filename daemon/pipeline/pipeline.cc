@@ -187,6 +187,9 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     const capture::CameraFault fault = c.health_monitor.Check(frame);
     c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
     if (fault != capture::CameraFault::kNone) return;
+    // A repeat of the last frame is not a new view: dropped, so the camera's
+    // age keeps growing (dilation, then stale at its timeout) until frozen.
+    if (c.health_monitor.repeated()) return;
     if (!c.background) {
       // Warm-up, the camera's first frame: the model, and its saved background.
       c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,

@@ -655,6 +655,88 @@ TEST(PipelineTest, SimBayerMosaicsGoThroughTheBackgroundModel) {
   SimColourFramesThroughTheBackgroundModel(/*bayer=*/true);
 }
 
+// A colour camera that, once told to, delivers its last image again and again
+// with fresh stamps (a hung driver re-delivering its buffer).
+class RepeatingSource : public capture::CameraSource {
+ public:
+  explicit RepeatingSource(std::unique_ptr<capture::CameraSource> inner)
+      : inner_(std::move(inner)) {}
+  bool Next(capture::Frame* frame, std::chrono::milliseconds timeout) override {
+    if (!repeat.load()) {
+      if (!inner_->Next(frame, timeout)) return false;
+      last_ = frame->rgb;  // The pipeline hands in a ring of frames: keep our own copy.
+      return true;
+    }
+    if (!inner_->Next(&scratch_, timeout)) return false;
+    frame->kind = capture::FrameKind::kRgb;
+    frame->rgb = last_;                   // Pixels as before,
+    frame->stamp_ns = scratch_.stamp_ns;  // stamp of now.
+    frame->index = scratch_.index;
+    return true;
+  }
+  void Stop() override { inner_->Stop(); }
+  std::atomic<bool> repeat{false};
+
+ private:
+  std::unique_ptr<capture::CameraSource> inner_;
+  capture::Frame scratch_;
+  common::ImageRgb8 last_;
+};
+
+// A frame that repeats the one before is no new view of the cell: the camera
+// gets no fresh frame from the first repeat on and turns stale at its timeout,
+// well before the repeats count as frozen; it never certifies anything free
+// on its old image meanwhile.
+TEST(PipelineTest, ARepeatedColourFrameIsNotAFreshView) {
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  const capture::SimClock clock = capture::SimClock::Now();
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 6;
+  options.publish_depth = 5;
+  options.deadline_ms = 30;
+  options.background.learn_frames = 10;
+  std::vector<PipelineCamera> cameras;
+  RepeatingSource* repeating = nullptr;
+  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+    auto sim = std::make_unique<capture::SimSource>(scene, c, 30.0, clock);
+    sim->EnableColour(0.5);
+    auto source = std::make_unique<RepeatingSource>(std::move(sim));
+    if (c == 2) repeating = source.get();
+    cameras.push_back({scene->cameras[c].model, std::move(source), 150});
+  }
+  Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+  pipeline.Start();
+  const auto give_up = std::chrono::steady_clock::now() + 10s;
+  std::shared_ptr<const OccupancySnapshot> ok;
+  while (std::chrono::steady_clock::now() < give_up) {
+    ok = pipeline.Latest();
+    if (ok && ok->sequence > 5 && ok->health.cameras[2].state == CameraState::kOk) break;
+    ok = nullptr;
+    std::this_thread::sleep_for(5ms);
+  }
+  ASSERT_NE(ok, nullptr) << "camera 2 never ok";
+  repeating->repeat = true;
+  const std::uint64_t frames_at_repeat = pipeline.Latest()->health.cameras[2].frames;
+  std::shared_ptr<const OccupancySnapshot> first_not_ok;
+  while (std::chrono::steady_clock::now() < give_up) {
+    const auto s = pipeline.Latest();
+    if (s->health.cameras[2].state != CameraState::kOk) {
+      first_not_ok = s;
+      break;
+    }
+    std::this_thread::sleep_for(2ms);
+  }
+  pipeline.Stop();
+  ASSERT_NE(first_not_ok, nullptr) << "a camera repeating its frame stayed ok";
+  const CameraHealth& h = first_not_ok->health.cameras[2];
+  EXPECT_EQ(h.state, CameraState::kStale) << "frozen (fault " << int{h.fault} << ") came first";
+  EXPECT_EQ(h.fault, 0);
+  // The frame the repeats copy, at most, came after the count was read.
+  EXPECT_LE(h.frames, frames_at_repeat + 1);
+  EXPECT_TRUE(first_not_ok->health.degraded);
+}
+
 TEST(PipelineTest, ColourRecordingThroughTheBackgroundModel) {
   namespace fs = std::filesystem;
   const std::shared_ptr<sim::Scene> scene = StandingScene();
