@@ -24,6 +24,8 @@ KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volum
   for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
     index.emplace(KnowledgeFilterResult::Key(cells[i]), i);
   }
+  // Whether the leaf touches occluded space or a face of the bounds.
+  std::vector<char> anchored(cells.size(), 0);
   std::vector<int> parent(cells.size());
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int i) {
@@ -48,27 +50,34 @@ KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volum
         if (dir[a] > 0) p[a] = box.max[a] + eps;
       }
       const auto leaf = tree.LeafAt(p);
-      if (!leaf || leaf->second != LeafState::kOccupied) continue;
+      if (!leaf || leaf->second == LeafState::kOccluded) {
+        anchored[i] = 1;  // Outside the bounds, or beside space no camera sees.
+        continue;
+      }
+      if (leaf->second != LeafState::kOccupied) continue;
       const auto it = index.find(KnowledgeFilterResult::Key(leaf->first));
       if (it == index.end()) continue;
       parent[find(i)] = find(it->second);
     }
   }
   std::vector<double> volume(cells.size(), 0.0);
+  std::vector<char> kept(cells.size(), 0);  // Per component root: anchored somewhere.
   for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
     volume[find(i)] += CellBox(bounds, cells[i]).Volume();
+    if (anchored[i] != 0) kept[find(i)] = 1;
   }
+  auto dropped = [&](int root) { return kept[root] == 0 && volume[root] < min_volume_m3; };
   KnowledgeFilterResult result;
   for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
     if (find(i) != i) continue;
     ++result.components;
-    if (volume[i] < min_volume_m3) {
+    if (dropped(i)) {
       ++result.dropped_components;
       result.dropped_volume_m3 += volume[i];
     }
   }
   for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
-    if (volume[find(i)] < min_volume_m3) {
+    if (dropped(find(i))) {
       result.dropped_.insert(KnowledgeFilterResult::Key(cells[i]));
     }
   }

@@ -9,16 +9,13 @@
 
 namespace hg::octree {
 
-/// Settings; the filter is off by default because it deliberately frees space
-/// that the cameras could not certify (noise blobs, pseudo objects).
-struct KnowledgeFilterConfig {
-  bool enabled = false;
-  double min_component_volume_m3 = 0.001;  ///< Components below this volume are dropped.
-};
-
 /// Connected components (26-connectivity: leaves sharing a face, an edge or a
 /// corner) of the occupied leaves, computed on the octree leaves themselves.
-/// Occluded leaves are never dropped. Value type; queries are thread-safe.
+/// Occluded leaves are never dropped, nor is a component that touches an
+/// occluded leaf or a face of the bounds: it may be the visible part of
+/// something larger (a person partly hidden, or reaching in from outside).
+/// The filter is opt-in because it frees space the cameras could not certify.
+/// Value type; queries are thread-safe.
 class KnowledgeFilterResult {
  public:
   [[nodiscard]] bool IsDropped(const Cell& cell) const { return dropped_.count(Key(cell)) != 0; }
@@ -39,8 +36,9 @@ class KnowledgeFilterResult {
   std::unordered_set<std::uint64_t> dropped_;
 };
 
-/// Finds the occupied components of the tree and marks those smaller than
-/// `min_volume_m3` as dropped.
+/// Finds the occupied components of the tree and marks as dropped those
+/// smaller than `min_volume_m3` that touch neither occluded space nor a face of
+/// the bounds.
 [[nodiscard]] KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volume_m3);
 
 }  // namespace hg::octree

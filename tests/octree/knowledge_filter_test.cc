@@ -157,5 +157,50 @@ TEST(KnowledgeFilterTest, CellsTouchingAtACornerOrAnEdgeFormOneComponent) {
   }
 }
 
+// A small blob that touches a face of the bounds, or occluded space, may be
+// the visible part of something larger (someone reaching in, someone behind
+// an obstacle): kept, while the same blob in the open is dropped.
+TEST(KnowledgeFilterTest, BlobsAtAFaceOrBesideOccludedSpaceAreKept) {
+  // At the face x = 0, and in the open.
+  const Cell at_face{kSpeckDepth, 0, 7, 7};
+  const Cell in_open{kSpeckDepth, 4, 7, 7};
+  const Specks s = CarveSpecks({at_face, in_open});
+  const double cell_volume = CellBox(kSpeckBounds, at_face).Volume();
+  const KnowledgeFilterResult r = FilterSmallComponents(*s.tree, 1.5 * cell_volume);
+  EXPECT_EQ(r.components, 2);
+  EXPECT_EQ(r.dropped_components, 1);
+  EXPECT_FALSE(r.IsDropped(at_face));
+  EXPECT_TRUE(r.IsDropped(in_open));
+
+  // Cameras on one side of a wall: the space behind it is occluded. A ball in
+  // front of the wall, touching it, beside the occluded space; another in the open.
+  const common::Box3 bounds{{0, 0, 0}, {2, 2, 2}};
+  std::vector<geometry::CameraModel> cams;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d eye(-2.5, 1.0 + ((i & 1) != 0 ? 0.6 : -0.6), 1.0 + (i < 2 ? 0.6 : -0.6));
+    cams.push_back(testing::LookAtCamera(eye, {1, 1, 1}, 320, 240, 260));
+  }
+  const std::vector<geometry::TriangleMesh> wall = {
+      geometry::TriangleMesh::Box({1.0, 0.4, 0.4}, {1.1, 1.6, 1.6})};
+  const scene::Sphere by_wall{{0.97, 1.0, 1.0}, 0.03};
+  const scene::Sphere open{{0.5, 1.5, 0.3}, 0.03};
+  const auto masks = testing::RenderMasks(cams, {by_wall, open});
+  std::vector<silhouette::SilhouetteQuadtree> trees;
+  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
+  for (const auto& c : cams) trees.emplace_back(c.width, c.height);
+  for (std::size_t i = 0; i < cams.size(); ++i) {
+    trees[i].Build(masks[i].View(), 127);
+    ptrs.push_back(&trees[i]);
+  }
+  Octree tree(OctreeConfig{bounds, 6, 1}, testing::MakeViews(cams, wall));
+  tree.Update(ptrs);
+  ASSERT_EQ(tree.StateAt({1.5, 1.0, 1.0}), PointState::kOccluded) << "behind the wall";
+  ASSERT_EQ(tree.StateAt(by_wall.centre_W), PointState::kOccupied);
+  ASSERT_EQ(tree.StateAt(open.centre_W), PointState::kOccupied);
+  const KnowledgeFilterResult w = FilterSmallComponents(tree, 0.01);
+  EXPECT_NE(w.StateAt(tree, by_wall.centre_W), PointState::kFree);
+  EXPECT_EQ(w.StateAt(tree, open.centre_W), PointState::kFree);
+}
+
 }  // namespace
 }  // namespace hg::octree
