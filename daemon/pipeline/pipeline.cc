@@ -256,7 +256,12 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
 std::shared_ptr<OccupancySnapshot> Pipeline::FreeSnapshot() {
   // use_count() == 1: only the pool holds it (no consumer, not the latest).
   for (const auto& s : pool_) {
-    if (s.use_count() == 1) return s;
+    if (s.use_count() == 1) {
+      // use_count() is a relaxed load: the fence orders the consumers' last
+      // reads (before their release of the reference) before our rewrite.
+      std::atomic_thread_fence(std::memory_order_acquire);
+      return s;
+    }
   }
   pool_.push_back(std::make_shared<OccupancySnapshot>());
   return pool_.back();
