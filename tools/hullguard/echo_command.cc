@@ -262,11 +262,15 @@ void PrintStatus(const hullguard_Status& s, bool json) {
   }
   if (json) {
     std::printf(
-        "{\"topic\": \"status\", \"sequence\": %llu, \"degraded\": %s, \"deadline_misses\": %llu, "
-        "\"missed_cycles\": %llu, \"cycle_ms\": %.3f, \"cameras\": [%s]}\n",
-        static_cast<unsigned long long>(s.sequence), s.degraded ? "true" : "false",
+        "{\"topic\": \"status\", \"sequence\": %llu, \"stamp_ns\": %lld, \"latency_ms\": %.3f, "
+        "\"degraded\": %s, \"deadline_misses\": %llu, "
+        "\"missed_cycles\": %llu, \"silhouette_ms\": %.3f, \"skew_ms\": %.3f, "
+        "\"octree_ms\": %.3f, \"cycle_ms\": %.3f, \"cameras\": [%s]}\n",
+        static_cast<unsigned long long>(s.sequence), static_cast<long long>(s.stamp_ns),
+        static_cast<double>(RealtimeNs() - s.stamp_ns) * 1e-6, s.degraded ? "true" : "false",
         static_cast<unsigned long long>(s.deadline_misses),
-        static_cast<unsigned long long>(s.missed_cycles), s.cycle_ms, cameras.c_str());
+        static_cast<unsigned long long>(s.missed_cycles), s.silhouette_ms, s.skew_ms, s.octree_ms,
+        s.cycle_ms, cameras.c_str());
   } else {
     std::printf(
         "status seq=%llu degraded=%d deadline_misses=%llu missed_cycles=%llu cycle_ms=%.2f "

@@ -9,7 +9,9 @@
 # (start-up: scenes, obstacle depth maps, background learning, the first full
 # build) are not measured: latency and `window_missed_cycles` cover the rest.
 # Prints one JSON object. With HG_LATENCY_OUT=FILE, every measured sample's
-# latency (ms) is also written to FILE, one per line (tools/perf/plot_latency.py).
+# latency (ms) is also written to FILE, one per line (tools/perf/plot_latency.py);
+# with HG_ECHO_OUT=FILE, the subscriber's status samples (JSON lines: latency,
+# stage times, cameras) are kept in FILE.
 set -eu
 root=$(cd "$(dirname "$0")/../.." && pwd)
 config=${1:-$root/config/paper_cell.yaml}
@@ -33,6 +35,7 @@ fi
 export CYCLONEDDS_URI="file://$root/config/cyclonedds.xml"
 run
 if [ -n "${HG_LATENCY_OUT:-}" ] && [ -f "$out/latency.txt" ]; then cp "$out/latency.txt" "$HG_LATENCY_OUT"; fi
+if [ -n "${HG_ECHO_OUT:-}" ]; then cp "$out/echo.jsonl" "$HG_ECHO_OUT"; fi
 last=$(grep 'hullguardd: cycle' "$out/daemon.log" | tail -1)
 cycles=$(echo "$last" | sed -n 's/.*cycle \([0-9]*\) .*/\1/p')
 misses=$(echo "$last" | sed -n 's/.*deadline misses \([0-9]*\) .*/\1/p')
