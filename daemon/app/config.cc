@@ -22,9 +22,11 @@
 #include "app/tracking_stage.h"
 #include "capture/recording.h"
 #include "common/config_error.h"
+#include "common/limits.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 #include "geometry/mesh.h"
+#include "octree/octree.h"
 #include "sim/scene.h"
 
 namespace hg::app {
@@ -145,7 +147,8 @@ const Field<OctreeSettings> kOctreeFields[] = {
     {.key = "boundary_coarsening",
      .member = &OctreeSettings::boundary_coarsening,
      .meaning = "Boxes mixed only through static geometry (view edges, obstacle depth) stop this "
-                "many levels above depth, as occupied-when-seen leaves. 0 resolves them exactly.",
+                "many levels above depth, as occupied-when-seen leaves; at most depth - 3 (the "
+                "roots). 0 resolves them exactly.",
      .limits = {0, 16}},
     {.key = "knowledge_filter_m3",
      .member = &OctreeSettings::knowledge_filter_m3,
@@ -162,7 +165,8 @@ const Field<OctreeSettings> kOctreeFields[] = {
      .limits = {1, 10}},
     {.key = "coarse_first_depth",
      .member = &OctreeSettings::coarse_first_depth,
-     .meaning = "0: off. Otherwise a level below depth: each cycle first brings the octree up to "
+     .meaning = "0: off. Otherwise a level below depth (a default at or above a shallow depth "
+                "turns off): each cycle first brings the octree up to "
                 "date down to this level, then refines one level per pass down to the tracking "
                 "voxel's level and two per pass below it, so a cycle that hits "
                 "its deadline still publishes a result as fine as its last completed pass "
@@ -472,7 +476,8 @@ const Field<DdsConfig> kDdsFields[] = {
      .limits = {0, 232}},
     {.key = "topic_prefix",
      .member = &DdsConfig::topic_prefix,
-     .meaning = "Prefix of every topic name (`<prefix>/occupancy`, ...)."},
+     .meaning = "Prefix of every topic name (`<prefix>/occupancy`, ...): letters, digits and "
+                "`_`, names joined by `/`, not starting with a digit."},
     {.key = "enabled",
      .member = &DdsConfig::enabled,
      .meaning = "Publish on DDS; false runs with the null publisher."},
@@ -877,6 +882,10 @@ class Reader {
       Error(e.at("max").line, e.at("max").path, "must exceed min on every axis");
       return std::nullopt;
     }
+    if (!box.IsPlausibleCell()) {
+      Error(e.at("max").line, e.at("max").path, "coordinates must be within +-1e6 m");
+      return std::nullopt;
+    }
     return box;
   }
 
@@ -1141,7 +1150,8 @@ void CheckRecording(Reader& r, const Item& directory, const ReplaySourceConfig& 
     const bool rgb = frame.kind == capture::FrameKind::kRgb;
     const int w = rgb ? frame.rgb.width : frame.grey.width;
     const int h = rgb ? frame.rgb.height : frame.grey.height;
-    if (w != model.width || h != model.height) {
+    // A camera block with errors of its own (reported) leaves the model empty.
+    if (model.width > 0 && (w != model.width || h != model.height)) {
       r.Error(directory.line, directory.path,
               "camera '" + replay.camera + "' was recorded at " + std::to_string(w) + "x" +
                   std::to_string(h) + ", the camera block is " + std::to_string(model.width) + "x" +
@@ -1490,16 +1500,42 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   ReadSection<CellConfig>(r, sections, "cell", kCellFields, &config.cell);
   const std::size_t errors_before_octree = r.error_count();
   ReadSection<OctreeSettings>(r, sections, "octree", kOctreeFields, &config.octree);
-  if (r.error_count() == errors_before_octree &&
-      config.octree.publish_depth > config.octree.depth) {
+  // The line of a key of a section; 0 when the key is not given.
+  auto key_line = [&](const std::string& section, const std::string& key) {
     int line = 0;
-    if (const auto it = sections.find("octree"); it != sections.end() && it->second.value.IsMap()) {
+    if (const auto it = sections.find(section); it != sections.end() && it->second.value.IsMap()) {
       for (const auto& kv : it->second.value) {
-        if (kv.first.IsScalar() && kv.first.Scalar() == "publish_depth") {
-          line = common::YamlLine(kv.first);
-        }
+        if (kv.first.IsScalar() && kv.first.Scalar() == key) line = common::YamlLine(kv.first);
       }
     }
+    return line;
+  };
+  if (r.error_count() == errors_before_octree) {
+    OctreeSettings& o = config.octree;
+    // Defaults beyond a shallow octree's depth are turned off; given ones are errors.
+    if (o.coarse_first_depth != 0 && o.coarse_first_depth >= o.depth) {
+      if (const int line = key_line("octree", "coarse_first_depth"); line == 0) {
+        o.coarse_first_depth = 0;
+      } else {
+        r.Error(line, "octree.coarse_first_depth",
+                "must be 0 (off) or a level below octree.depth = " + std::to_string(o.depth) +
+                    " (got " + std::to_string(o.coarse_first_depth) + ")");
+      }
+    }
+    if (o.depth - o.boundary_coarsening < octree::Octree::kRootLevel) {
+      if (const int line = key_line("octree", "boundary_coarsening"); line == 0) {
+        o.boundary_coarsening = o.depth - octree::Octree::kRootLevel;
+      } else {
+        r.Error(line, "octree.boundary_coarsening",
+                "must be <= octree.depth - 3 = " +
+                    std::to_string(o.depth - octree::Octree::kRootLevel) +
+                    " (the roots' level; got " + std::to_string(o.boundary_coarsening) + ")");
+      }
+    }
+  }
+  if (r.error_count() == errors_before_octree &&
+      config.octree.publish_depth > config.octree.depth) {
+    const int line = key_line("octree", "publish_depth");
     if (line == 0) {
       config.octree.publish_depth = config.octree.depth;  // The default, for a shallow octree.
     } else {
@@ -1529,7 +1565,26 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
     r.Error(line, "background.max_threshold",
             "must be >= background.threshold = " + std::to_string(config.background.threshold));
   }
+  const std::size_t errors_before_dds = r.error_count();
   ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);
+  if (r.error_count() == errors_before_dds) {
+    // DDS topic names: letters, digits and '_', not starting with a digit; the
+    // prefix may hold '/' between such names ("plant/cell_3").
+    const std::string& prefix = config.dds.topic_prefix;
+    bool valid = !prefix.empty() && prefix.front() != '/' && prefix.back() != '/' &&
+                 prefix.find("//") == std::string::npos &&
+                 !(prefix.front() >= '0' && prefix.front() <= '9');
+    for (const char ch : prefix) {
+      valid = valid && ((ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') ||
+                        (ch >= '0' && ch <= '9') || ch == '_' || ch == '/');
+    }
+    if (!valid) {
+      r.Error(key_line("dds", "topic_prefix"), "dds.topic_prefix",
+              "'" + prefix +
+                  "' is not a DDS topic name prefix: letters, digits and '_', names joined by "
+                  "'/', not starting with a digit");
+    }
+  }
   ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
   ReadSection<BlackBoxConfig>(r, sections, "blackbox", kBlackBoxFields, &config.blackbox);
   if (!config.background.keep_dir.empty() && fs::path(config.background.keep_dir).is_relative()) {
@@ -1566,6 +1621,10 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
     const Item& list = it->second;
     if (!list.value.IsSequence() || list.value.size() == 0) {
       r.Error(list.line, list.path, "expected a non-empty list of cameras");
+    } else if (list.value.size() > static_cast<std::size_t>(common::kMaxCameras)) {
+      r.Error(list.line, list.path,
+              std::to_string(list.value.size()) + " cameras, at most " +
+                  std::to_string(common::kMaxCameras) + " (one octree fuses at most that many)");
     } else {
       std::map<std::string, int> first_line;  // Camera name -> line of its name.
       SceneCache scenes;

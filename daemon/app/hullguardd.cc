@@ -9,6 +9,7 @@
 
 #include "app/config.h"
 #include "app/run.h"
+#include "common/cli_checks.h"
 #include "common/config_error.h"
 #include "common/version.h"
 
@@ -36,7 +37,8 @@ int main(int argc, char** argv) {
   app.add_option("--duration", duration_s,
                  "With --config: stop after this many seconds (0: run until "
                  "SIGTERM or SIGINT)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kFinite);
   app.set_version_flag("--version", std::string("hullguardd ") + hg::common::Version() + " (" +
                                         hg::common::Commit() + ")");
   config_opt->excludes(check_opt)->excludes(docs_opt);

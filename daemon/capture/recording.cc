@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/config_error.h"
+#include "common/input_file.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 
@@ -27,6 +28,11 @@ using common::ConfigError;
 
 constexpr int kRecordFormat = 1;
 constexpr char kIndexHeader[] = "frame,stamp_ns,device_stamp_ns,source_index,file";
+// Larger than any frame file (an RGB image of 16384 x 16384 is 768 MiB raw).
+constexpr std::streamoff kMaxFrameFileBytes = std::streamoff{1} << 30;
+// Frame rates and spans a recording may claim.
+constexpr double kMaxRateHz = 1000.0;
+constexpr std::int64_t kMaxSpanNs = std::int64_t{30} * 24 * 3600 * 1'000'000'000;  // 30 days.
 
 std::string ManifestPath(const std::string& directory) {
   return (fs::path(directory) / "manifest.yaml").string();
@@ -72,9 +78,7 @@ bool ParseInt(std::string_view text, T* out) {
 /// Reads frames/<camera>/index.csv: every complete line (a last line without
 /// its newline was cut short by a crash and is left out).
 std::vector<RecordedFrame> ReadIndex(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError::At(path, 0, "cannot open the frames index");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string text = common::ReadInputFile(path, "the frames index", std::ios::binary);
   std::vector<RecordedFrame> frames;
   std::size_t pos = 0;
   int line = 0;
@@ -113,6 +117,11 @@ std::vector<RecordedFrame> ReadIndex(const std::string& path) {
                             "expected frame,stamp_ns,device_stamp_ns,source_index,file (got '" +
                                 std::string(row) + "')");
     }
+    if (f.stamp_ns <= 0) throw ConfigError::At(path, line, "stamp_ns must be > 0");
+    // Stamps may step back with the host clock, but never this far.
+    if (!frames.empty() && std::abs(f.stamp_ns - frames.front().stamp_ns) > kMaxSpanNs) {
+      throw ConfigError::At(path, line, "stamp_ns more than 30 days from the first frame's");
+    }
     if (!field[2].empty()) f.device_stamp_ns = device;
     f.file = std::string(field[4]);
     frames.push_back(std::move(f));
@@ -122,8 +131,7 @@ std::vector<RecordedFrame> ReadIndex(const std::string& path) {
 
 /// Stamp of the first indexed frame of a camera; nullopt when it has none.
 std::optional<std::int64_t> FirstStamp(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw ConfigError::At(path, 0, "cannot open the frames index");
+  std::ifstream in = common::OpenInputFile(path, "the frames index", std::ios::binary);
   std::string header, row;
   if (!std::getline(in, header) || !std::getline(in, row) || in.eof()) return std::nullopt;
   const std::size_t a = row.find(',');
@@ -153,11 +161,25 @@ RecordingCamera ReadSynth(const YAML::Node& root, const std::string& manifest,
     Fail(manifest, head, "synth",
          std::string("expected rate_hz, frames, masks, colour: ") + e.what());
   }
-  if (!(r.rate_hz > 0.0) || frames < 1 || (!masks && !colour)) {
-    Fail(manifest, head, "synth", "needs rate_hz > 0, frames >= 1 and masks or colour");
+  if (!(r.rate_hz > 0.0 && r.rate_hz <= kMaxRateHz) || frames < 1 || (!masks && !colour)) {
+    Fail(manifest, head, "synth",
+         "needs 0 < rate_hz <= " + std::to_string(static_cast<int>(kMaxRateHz)) +
+             ", frames >= 1 and masks or colour");
   }
   const YAML::Node c = CameraEntry(root, manifest, camera);
-  r.time_offset_s = c["time_offset_s"] ? c["time_offset_s"].as<double>() : 0.0;
+  r.time_offset_s = 0.0;
+  if (const YAML::Node offset = c["time_offset_s"]) {
+    try {
+      r.time_offset_s = offset.as<double>();
+    } catch (const YAML::Exception&) {
+      Fail(manifest, offset, "time_offset_s", "not a number");
+    }
+    // A capture offset is a fraction of a period; NaN or a huge one would put
+    // the frames (and their ground truth) at times that mean nothing.
+    if (!(std::abs(r.time_offset_s) <= 1.0)) {
+      Fail(manifest, offset, "time_offset_s", "must be a number of seconds within [-1, 1]");
+    }
+  }
   // Masks are preferred: they are the ground truth the colour frames show.
   r.kind = masks ? FrameKind::kMask : FrameKind::kRgb;
   // A free-running camera's offset only matters modulo its period. The times
@@ -309,7 +331,10 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   path->assign(recording.directory).append("/").append(recording.frames[index].file);
   std::ifstream in(*path, std::ios::binary | std::ios::ate);
   if (!in) return false;
-  bytes->resize(static_cast<std::size_t>(in.tellg()));
+  // A folder opens too, with a size of -1 or of everything: neither is a frame.
+  const std::streamoff size = in.tellg();
+  if (size <= 0 || size > kMaxFrameFileBytes) return false;
+  bytes->resize(static_cast<std::size_t>(size));
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(bytes->data()),
                static_cast<std::streamsize>(bytes->size())) ||
@@ -320,16 +345,18 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   const bool sized = recording.width > 0;
   frame->device_stamp_ns = recording.frames[index].device_stamp_ns.value_or(-1);
   if (recording.kind != FrameKind::kRgb) {
-    const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE);
-    if (img.empty() || !img.isContinuous()) return false;
+    // ANYDEPTH: a 16-bit image stays 16-bit and is refused below, where a plain
+    // GRAYSCALE decode would scale 255 down to 0 (foreground read as background).
+    const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+    if (img.empty() || img.type() != CV_8UC1 || !img.isContinuous()) return false;
     if (sized && (img.cols != recording.width || img.rows != recording.height)) return false;
     frame->kind = recording.kind;
     frame->grey.width = img.cols;
     frame->grey.height = img.rows;
     frame->grey.pixels.assign(img.data, img.data + img.total());
   } else {
-    const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_COLOR);
-    if (img.empty()) return false;
+    const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
+    if (img.empty() || img.type() != CV_8UC3) return false;
     if (sized && (img.cols != recording.width || img.rows != recording.height)) return false;
     frame->kind = FrameKind::kRgb;
     frame->rgb.width = img.cols;

@@ -4,6 +4,8 @@
 
 #include <Eigen/Core>
 
+#include "common/limits.h"
+
 namespace hg::common {
 
 /// Closed axis-aligned box [min, max] in metres. Value type, thread-compatible.
@@ -18,6 +20,12 @@ struct Box3 {
   /// infinite box has no finite cells and a NaN one contains nothing).
   [[nodiscard]] bool IsValid() const {
     return min.allFinite() && max.allFinite() && (max.array() > min.array()).all();
+  }
+  /// IsValid(), and every coordinate within +-kMaxCoordinateM: what a cell's
+  /// bounds may be.
+  [[nodiscard]] bool IsPlausibleCell() const {
+    return IsValid() && min.cwiseAbs().maxCoeff() <= kMaxCoordinateM &&
+           max.cwiseAbs().maxCoeff() <= kMaxCoordinateM;
   }
   [[nodiscard]] Eigen::Vector3d Size() const { return max - min; }
   [[nodiscard]] double Volume() const { return Size().prod(); }

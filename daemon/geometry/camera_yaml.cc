@@ -13,6 +13,7 @@
 #include <Eigen/LU>
 
 #include "common/config_error.h"
+#include "common/limits.h"
 #include "common/yaml_file.h"
 
 namespace hg::geometry {
@@ -38,6 +39,12 @@ constexpr double kMinLookDistance = 1e-9;
 /// cannot orient the image (about 8 degrees); the same limit as the demo cell.
 constexpr double kMaxUpAlignment = 0.99;
 
+/// Plausible cameras (CheckPlausible): focal lengths in pixels, coordinates in
+/// metres, distortion coefficients.
+constexpr double kMinFocalPx = 1.0;
+constexpr double kMaxFocalPx = 1e6;
+constexpr double kMaxDistortion = 1000.0;
+
 /// Reads one camera entry. `where` names the entry in messages ("cameras[2]"),
 /// empty for a stand-alone entry.
 class CameraParser {
@@ -49,6 +56,18 @@ class CameraParser {
       : node_(node), file_(file), where_(std::move(where)), errors_(errors) {}
 
   CameraModel Parse() {
+    const std::size_t errors_before = errors_ != nullptr ? errors_->size() : 0;
+    CameraModel camera = ParseForms();
+    const bool parsed = errors_ == nullptr || errors_->size() == errors_before;
+    if (parsed) Check([&] { CheckPlausible(camera); });
+    return camera;
+  }
+
+  /// Line of the `name` key; valid after Parse() returned.
+  [[nodiscard]] int name_line() const { return LineOf(Key("name")); }
+
+ private:
+  CameraModel ParseForms() {
     if (!node_.IsMap()) {
       throw ConfigError::At(file_, LineOf(node_), Prefix() + "expected a map with the camera keys");
     }
@@ -166,10 +185,38 @@ class CameraParser {
     return camera;
   }
 
-  /// Line of the `name` key; valid after Parse() returned.
-  [[nodiscard]] int name_line() const { return LineOf(Key("name")); }
+  /// Numbers no real camera has: a focal length of a thousandth of a pixel
+  /// would see the whole cell in one pixel and certify it free at once.
+  void CheckPlausible(const CameraModel& camera) const {
+    const std::string intrinsics = Has("P") ? "P" : "K";
+    auto fail = [&](const std::string& key, const std::string& problem) {
+      throw ConfigError::At(file_, Has(key) ? LineOf(Key(key)) : LineOf(node_),
+                            Path(key) + ": " + problem);
+    };
+    const Eigen::Matrix3d& K = camera.K;
+    if (!(K(0, 0) >= kMinFocalPx && K(0, 0) <= kMaxFocalPx && K(1, 1) >= kMinFocalPx &&
+          K(1, 1) <= kMaxFocalPx)) {
+      char got[96];
+      std::snprintf(got, sizeof(got), " (got %.6g, %.6g)", K(0, 0), K(1, 1));
+      fail(intrinsics, std::string("focal lengths must be within [1, 1e6] px") + got);
+    }
+    if (!(std::abs(K(0, 1)) <= K(0, 0))) fail(intrinsics, "skew larger than the focal length");
+    if (!(K(0, 2) >= -camera.width && K(0, 2) <= 2.0 * camera.width && K(1, 2) >= -camera.height &&
+          K(1, 2) <= 2.0 * camera.height)) {
+      fail(intrinsics, "principal point more than an image size outside the image");
+    }
+    const Eigen::Vector3d centre = camera.CentreW();
+    if (!(centre.lpNorm<Eigen::Infinity>() <= common::kMaxCoordinateM)) {
+      const std::string key = Has("P") ? "P" : Has("position") ? "position" : "t";
+      fail(key, "camera position more than 1e6 m from the origin");
+    }
+    for (int i = 0; i < 5; ++i) {
+      if (!(std::abs(camera.distortion[i]) <= kMaxDistortion)) {
+        fail("distortion", "coefficients must be within [-1000, 1000]");
+      }
+    }
+  }
 
- private:
   /// Runs one check that does not depend on the others having passed: when
   /// collecting, its problem is recorded and parsing goes on.
   template <typename F>

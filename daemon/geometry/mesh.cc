@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "common/config_error.h"
+#include "common/input_file.h"
 
 namespace hg::geometry {
 
@@ -86,8 +87,7 @@ bool ParseInt(std::string_view token, long long* value) {
 }  // namespace
 
 TriangleMesh LoadObj(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw common::ConfigError::At(path, 0, "cannot open");
+  std::ifstream in = common::OpenInputFile(path, "");
 
   TriangleMesh mesh;
   std::string line;
@@ -294,10 +294,7 @@ TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
 }  // namespace
 
 TriangleMesh LoadStl(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw common::ConfigError::At(path, 0, "cannot open");
-  const std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (in.bad()) throw common::ConfigError::At(path, 0, "read error");
+  const std::string data = common::ReadInputFile(path, "", std::ios::binary);
 
   if (data.size() >= kStlHeaderBytes + 4) {
     const std::uint32_t count = ReadLittleEndian32(data, kStlHeaderBytes);

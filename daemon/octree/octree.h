@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/box.h"
+#include "common/limits.h"
 #include "common/worker_pool.h"
 #include "octree/camera_view.h"
 #include "silhouette/quadtree.h"
@@ -143,7 +144,7 @@ struct UpdateStats {
 /// Thread-compatible: Update() and the queries must not run concurrently.
 class Octree {
  public:
-  static constexpr int kMaxCameras = 16;
+  static constexpr int kMaxCameras = common::kMaxCameras;
   static constexpr int kRootLevel = 3;
   /// The 8 x 8 x 8 roots, numbered x + 8 y + 64 z.
   static constexpr int kNumRoots = 512;

@@ -7,13 +7,15 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/config_error.h"
+#include "common/input_file.h"
 
 namespace hg::silhouette {
 
 common::ImageU8 ReadGreyImage(const std::string& path) {
-  if (!std::filesystem::exists(path))
-    throw common::ConfigError(path + ": cannot open: no such file");
-  const cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  (void)common::OpenInputFile(path, "image");  // Missing, a folder, unreadable: named.
+  // ANYDEPTH keeps a 16-bit image 16-bit, refused below: a plain GRAYSCALE read
+  // would scale it to 8 bits, so 255 would read as 0 (foreground as background).
+  const cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
   if (m.empty() || m.type() != CV_8UC1) {
     throw common::ConfigError(path + ": not a readable 8-bit image");
   }
@@ -46,9 +48,8 @@ void WriteGreyImage(const std::string& path, const common::ImageU8& image) {
 }
 
 common::ImageRgb8 ReadRgbImage(const std::string& path) {
-  if (!std::filesystem::exists(path))
-    throw common::ConfigError(path + ": cannot open: no such file");
-  const cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR);
+  (void)common::OpenInputFile(path, "image");  // Missing, a folder, unreadable: named.
+  const cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
   if (bgr.empty() || bgr.type() != CV_8UC3) {
     throw common::ConfigError(path + ": not a readable 8-bit image");
   }

@@ -18,6 +18,8 @@
 #include <Eigen/Geometry>
 
 #include "common/config_error.h"
+#include "common/input_file.h"
+#include "common/limits.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 #include "geometry/mesh.h"
@@ -337,6 +339,11 @@ class SceneParser {
       if (!cameras->node().IsSequence() || cameras->node().size() == 0) {
         cameras->Fail("expected a non-empty list of cameras");
       }
+      if (cameras->node().size() > static_cast<std::size_t>(common::kMaxCameras)) {
+        cameras->Fail(std::to_string(cameras->node().size()) + " cameras, at most " +
+                      std::to_string(common::kMaxCameras) +
+                      " (one octree fuses at most that many)");
+      }
       for (geometry::CameraModel& model : geometry::ParseCameraList(cameras->node(), file_)) {
         scene.cameras.push_back(SceneCamera{std::move(model), 0.0});
       }
@@ -390,8 +397,14 @@ class SceneParser {
     if (!scene->bounds.IsValid()) {
       bounds.Get("max").Fail("must be greater than min on every axis");
     }
+    if (!scene->bounds.IsPlausibleCell()) {
+      bounds.Get("max").Fail("coordinates must be within +-1e6 m");
+    }
     if (const std::optional<Value> rate = map.Find("rate_hz")) {
       scene->rate_hz = rate->Positive();
+      if (!(scene->rate_hz >= 0.1 && scene->rate_hz <= 1000.0)) {
+        rate->Fail("must be within [0.1, 1000] Hz");
+      }
     }
   }
 
@@ -714,13 +727,9 @@ std::vector<geometry::TriangleMesh> Scene::ObstacleMeshes() const {
 }
 
 Scene LoadScene(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError::At(path, 0, "cannot open");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw ConfigError::At(path, 0, "read error");
+  const std::string text = common::ReadInputFile(path, "");
   const std::string base_dir = std::filesystem::path(path).parent_path().string();
-  Scene scene = ParseScene(text.str(), path, base_dir);
+  Scene scene = ParseScene(text, path, base_dir);
   scene.source_file = path;
   return scene;
 }

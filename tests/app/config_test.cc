@@ -364,6 +364,20 @@ const Mistake kMistakes[] = {
     {"max_threshold: 40", "max_threshold: 20", 44, "background.max_threshold",
      "must be >= background.threshold = 30"},
     {"publish_depth: 6", "publish_depth: 9", 3, "octree.publish_depth", "<= octree.depth = 8"},
+    {"octree: {", "octree: {coarse_first_depth: 8, ", 3, "octree.coarse_first_depth",
+     "a level below octree.depth = 8"},
+    {"boundary_coarsening: 2", "boundary_coarsening: 6", 3, "octree.boundary_coarsening",
+     "<= octree.depth - 3 = 5"},
+    {"max: [3, 4, 2.5]", "max: [3, 4, 1e300]", 2, "cell.bounds.max", "within +-1e6 m"},
+    {"topic_prefix: cell7", "topic_prefix: \"cell 7\"", 47, "dds.topic_prefix",
+     "not a DDS topic name prefix"},
+    {"topic_prefix: cell7", "topic_prefix: 7cell", 47, "dds.topic_prefix", "not starting"},
+    {"K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]\n    R:",
+     "K: [1e-9, 0, 319.5, 0, 1e-9, 239.5, 0, 0, 1]\n    R:", 17, "cameras[1].K",
+     "focal lengths must be within [1, 1e6] px"},
+    {"t: [0, 0, 2]", "t: [0, 0, 1e300]", 19, "cameras[1].t", "more than 1e6 m"},
+    {"distortion: [-0.1, 0.01, 0, 0, 0]", "distortion: [-0.1, 1e30, 0, 0, 0]", 40,
+     "cameras[3].distortion", "within [-1000, 1000]"},
     {"max_speed_mps: 1.6", "max_speed_mps: -1", 49, "motion.max_speed_mps", "must be in 0 .. 20"},
     {"min_camera_distance_m: 1.5", "min_camera_dist: 1.5", 49, "motion",
      "unknown key 'min_camera_dist'"},
@@ -413,6 +427,22 @@ TEST(ConfigTest, AllMistakesOfAFileAreReported) {
     EXPECT_GE(m.line, previous_line);  // Reported in file order.
     previous_line = m.line;
   }
+}
+
+TEST(ConfigTest, MoreCamerasThanOneOctreeFusesAreRefused) {
+  auto config = [](int n) {
+    std::string text = "cell:\n  bounds: {min: [0, 0, 0], max: [4, 4, 3]}\ncameras:\n";
+    for (int i = 0; i < n; ++i) {
+      text += "  - {name: c" + std::to_string(i) +
+              ", width: 640, height: 480, K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1], position: "
+              "[0, 0, 3], look_at: [2, 2, 1], source: {type: v4l2, device: /dev/video" +
+              std::to_string(i) + "}}\n";
+    }
+    return text;
+  };
+  EXPECT_EQ(ErrorOf(config(16)), "");
+  const std::string error = ErrorOf(config(17));
+  EXPECT_EQ(error.rfind("t.yaml:3: cameras: 17 cameras, at most 16", 0), 0u) << error;
 }
 
 TEST(ConfigTest, StructuralMistakes) {

@@ -392,5 +392,87 @@ TEST_F(RecordingTest, ReadsTheSynthLayout) {
   EXPECT_EQ(RecordingCameraNames(dir_.string()), (std::vector<std::string>{"a", "b"}));
 }
 
+// Frames that are no 8-bit image of the camera are unreadable, counted as
+// such: a 16-bit mask (a plain 8-bit decode would scale its 255 to 0, and the
+// foreground would read as background) and a folder where a frame should be.
+TEST_F(RecordingTest, SixteenBitAndFolderFramesAreUnreadable) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 3, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a}\n";
+  {
+    std::ofstream pgm(dir_ / "masks" / "a" / "000000.png", std::ios::binary);
+    pgm << "P5\n6 4\n65535\n";  // A 16-bit PGM, all 255, under a frame's name.
+    for (int i = 0; i < 6 * 4; ++i) pgm << '\0' << '\xff';
+  }
+  fs::create_directories(dir_ / "masks" / "a" / "000001.png");
+  silhouette::WriteGreyImage((dir_ / "masks" / "a" / "000002.png").string(),
+                             common::ImageU8(6, 4, 255));
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "a");
+  ReplaySource source(rec, SimClock{});
+  Frame f;
+  EXPECT_FALSE(source.ReadFrame(0, &f));
+  EXPECT_FALSE(source.ReadFrame(1, &f));
+  ASSERT_TRUE(source.ReadFrame(2, &f));
+  EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
+}
+
+// Numbers of a manifest or an index that would put frames at meaningless
+// times are errors naming the file and the line.
+TEST_F(RecordingTest, MeaninglessRatesOffsetsAndStampsAreRefused) {
+  auto synth = [&](const std::string& rate, const std::string& offset) {
+    fs::remove_all(dir_);
+    fs::create_directories(dir_ / "masks" / "a");
+    std::ofstream(dir_ / "manifest.yaml")
+        << "synth: {format: 1, scene: t, rate_hz: " << rate
+        << ", start_s: 0, frames: 3, masks: true, colour: false}\ncameras:\n  - {name: a, "
+           "time_offset_s: "
+        << offset << "}\n";
+    try {
+      (void)ReadRecordingCamera(dir_.string(), "a");
+      return std::string();
+    } catch (const common::ConfigError& e) {
+      return std::string(e.what());
+    }
+  };
+  EXPECT_EQ(synth("30", "0.01"), "");
+  for (const char* rate : {".inf", ".nan", "0", "1e6"}) {
+    EXPECT_NE(synth(rate, "0").find("manifest.yaml:1: synth: needs 0 < rate_hz <= 1000"),
+              std::string::npos)
+        << rate;
+  }
+  for (const char* offset : {".nan", ".inf", "1e30", "abc"}) {
+    EXPECT_NE(synth("30", offset).find("manifest.yaml:3: time_offset_s:"), std::string::npos)
+        << offset << ": " << synth("30", offset);
+  }
+
+  fs::remove_all(dir_);
+  {
+    RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
+    for (std::uint64_t i = 0; i < 2; ++i) {
+      Frame f = RandomFrame(FrameKind::kMask, 8, 6, i);
+      f.stamp_ns = 5000 + static_cast<std::int64_t>(i);
+      ASSERT_TRUE(writer.Write(0, i, f));
+    }
+  }
+  const fs::path index = dir_ / "frames" / "cam" / "index.csv";
+  const std::string good = [&] {
+    std::ifstream in(index);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }();
+  for (const std::string& line :
+       {std::string("2,9223372036854775807,,2,000002.png\n"), std::string("2,0,,2,000002.png\n"),
+        std::string("2,-5,,2,000002.png\n")}) {
+    std::ofstream(index, std::ios::trunc) << good << line;
+    try {
+      (void)ReadRecordingCamera(dir_.string(), "cam");
+      ADD_FAILURE() << "accepted " << line;
+    } catch (const common::ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(index.string() + ":4: stamp_ns"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace hg::capture

@@ -123,7 +123,7 @@ TEST(LoadObjTest, MissingFileNamesTheFile) {
     (void)LoadObj(path);
     FAIL() << "expected ConfigError";
   } catch (const common::ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()), path + ": cannot open");
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open: no such file");
   }
 }
 

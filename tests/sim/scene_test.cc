@@ -371,7 +371,7 @@ TEST(SceneMeshPathTest, MissingSceneFile) {
     (void)LoadScene(path);
     ADD_FAILURE() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()), path + ": cannot open");
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open: no such file");
   }
 }
 
@@ -544,6 +544,12 @@ TEST(SceneErrorTest, ValueRanges) {
               "people[1].script[1].reach.hand: expected 'left' or 'right'");
   ExpectError(Replace(kBase, "  name: t\n", "  name: t\n  rate_hz: 0\n"), 3,
               "scene.rate_hz: must be > 0");
+  ExpectError(Replace(kBase, "  name: t\n", "  name: t\n  rate_hz: 1e-30\n"), 3,
+              "scene.rate_hz: must be within [0.1, 1000] Hz");
+  ExpectError(Replace(kBase, "max: [4, 4, 3]", "max: [4, 4, 1e300]"), 3,
+              "scene.bounds.max: coordinates must be within +-1e6 m");
+  ExpectError(Replace(kBase, "K: [500, 0, 319.5, 0, 500,", "K: [1e-30, 0, 319.5, 0, 500,"), 8,
+              "cameras[0].K: focal lengths must be within [1, 1e6] px");
 }
 
 TEST(SceneErrorTest, PathsAndTiming) {
@@ -615,6 +621,18 @@ TEST(SceneErrorTest, CamerasAndOffsets) {
                       "    position: [-0.5, -0.5, 2.5]\n    look_at: [2, 2, 1]\n",
                       "cameras: []\n"),
               4, "cameras: expected a non-empty list of cameras");
+  std::string seventeen = "cameras:\n";
+  for (int i = 0; i < 17; ++i) {
+    seventeen += "  - {name: c" + std::to_string(i) +
+                 ", width: 64, height: 48, K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1], position: "
+                 "[-0.5, -0.5, 2.5], look_at: [2, 2, 1]}\n";
+  }
+  ExpectError(Replace(kBase,
+                      "cameras:\n  - name: c0\n    width: 640\n    height: 480\n"
+                      "    K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]\n"
+                      "    position: [-0.5, -0.5, 2.5]\n    look_at: [2, 2, 1]\n",
+                      seventeen),
+              4, "cameras: 17 cameras, at most 16");
 }
 
 TEST(SceneErrorTest, MeshFiles) {

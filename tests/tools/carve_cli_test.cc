@@ -440,6 +440,13 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     std::ofstream(Path("cut.png"), std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   }
+  // A 16-bit mask, all 255 (foreground): a plain 8-bit decode would scale it
+  // to 0, background, and certify the space free.
+  {
+    std::ofstream pgm(Path("deep.pgm"), std::ios::binary);
+    pgm << "P5\n8 6\n65535\n";
+    for (int i = 0; i < 8 * 6; ++i) pgm << '\0' << '\xff';
+  }
   // 17 tiny cameras (the octree supports 16), each with its mask.
   std::string seventeen_masks;
   {
@@ -494,6 +501,15 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
        "cams17.yaml: 17 cameras, at most 16"},
       {"carve --cameras " + Path("") + " --masks" + Masks() + " --bounds 0 0 0 2 2 2 --depth 6",
        "is a folder, not a file"},
+      {"carve" + cams + " --masks " + Path("deep.pgm") + Masks().substr(Masks().find(' ', 1)) +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "deep.pgm: not a readable 8-bit image"},
+      {"carve" + cams + " --masks " + Path("") + Masks().substr(Masks().find(' ', 1)) +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "cannot open mask: is a folder"},
+      {Base() + " --query " + Path(""), "cannot open query file: is a folder"},
+      {Base() + " --min-component-m3 nan", "not a finite number"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 1e300 2 2 --depth 6", "1e6 m"},
   };
   for (const Case& c : cases) {
     const ProcessResult r = Hullguard(c.args);

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/cli_checks.h"
 #include "common/config_error.h"
 #include "hullguard/commands.h"
 #include "hullguard/dense_baseline.h"
@@ -338,7 +339,8 @@ void RegisterBench(CLI::App& app, int* exit_code) {
       app.add_subcommand("bench", "Time the engine on a simulated scene, frame by frame");
   cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
   cmd->add_option("--frames", flags->frames, "Frames to run")->check(CLI::Range(2, 100000));
-  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)");
+  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--cameras", flags->cameras, "Use only the scene's first N cameras")
       ->check(CLI::Range(1, 16));
   cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
@@ -360,7 +362,8 @@ void RegisterBench(CLI::App& app, int* exit_code) {
       ->check(CLI::Range(0, 16));
   cmd->add_option("--deadline-ms", flags->deadline_ms,
                   "Abort each octree update this long after it starts (0: no deadline)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kFinite);
   cmd->add_option("--baseline", flags->baseline,
                   "dense:R also times a dense per-voxel carve at R^3 on the same frames; "
                   "open3d:R Open3D's VoxelGrid::CarveSilhouette (builds with HG_WITH_OPEN3D)");

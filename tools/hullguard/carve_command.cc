@@ -3,7 +3,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -17,7 +16,9 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include "common/cli_checks.h"
 #include "common/config_error.h"
+#include "common/input_file.h"
 #include "geometry/camera_yaml.h"
 #include "hullguard/carve.h"
 #include "hullguard/commands.h"
@@ -79,28 +80,24 @@ class SilencedStderr {
 // OpenCV's decoders reject truncated PNG and PGM data rather than return part of
 // the image (which would read as background, that is free space).
 common::ImageU8 ReadMask(const std::string& path) {
-  errno = 0;
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    throw common::ConfigError(path + ": cannot open mask" +
-                              (errno != 0 ? std::string(": ") + std::strerror(errno) : ""));
-  }
-  const std::vector<std::uint8_t> bytes((std::istreambuf_iterator<char>(in)),
-                                        std::istreambuf_iterator<char>());
-  if (in.bad()) throw common::ConfigError(path + ": cannot read mask");
+  const std::string bytes = common::ReadInputFile(path, "mask", std::ios::binary);
   if (bytes.empty()) throw common::ConfigError(path + ": mask file is empty");
   cv::Mat m;
   {
     const SilencedStderr quiet;
     try {
-      m = cv::imdecode(bytes, cv::IMREAD_GRAYSCALE);
+      // ANYDEPTH: a 16-bit mask stays 16-bit and is refused below; a plain
+      // GRAYSCALE decode would scale 255 to 0, foreground to background.
+      const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1,
+                            const_cast<char*>(bytes.data()));
+      m = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
     } catch (const cv::Exception&) {
       m = cv::Mat();
     }
   }
   if (m.empty() || m.type() != CV_8UC1) {
-    throw common::ConfigError(path +
-                              ": not a readable 8-bit image (truncated, damaged or not an image)");
+    throw common::ConfigError(
+        path + ": not a readable 8-bit image (16-bit, truncated, damaged or not an image)");
   }
   common::ImageU8 out(m.cols, m.rows);
   for (int v = 0; v < m.rows; ++v) {
@@ -117,8 +114,7 @@ struct QueryPoint {
 };
 
 std::vector<QueryPoint> ReadQueryPoints(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw common::ConfigError(path + ": cannot open");
+  std::ifstream in = common::OpenInputFile(path, "query file");
   std::vector<QueryPoint> points;
   std::string line;
   int number = 0;
@@ -152,10 +148,10 @@ int RunCarve(const CarveFlags& f) {
   // Cheap flags first: a bad --bounds fails before any file is read.
   job.bounds.min = {f.bounds[0], f.bounds[1], f.bounds[2]};
   job.bounds.max = {f.bounds[3], f.bounds[4], f.bounds[5]};
-  if (!job.bounds.IsValid()) {
+  if (!job.bounds.IsPlausibleCell()) {
     throw common::ConfigError(
-        "--bounds: need finite numbers with each max greater than its min (XMIN YMIN ZMIN XMAX "
-        "YMAX ZMAX)");
+        "--bounds: need finite numbers within +-1e6 m with each max greater than its min (XMIN "
+        "YMIN ZMIN XMAX YMAX ZMAX)");
   }
   job.cameras = geometry::LoadCamerasFile(f.cameras);
   if (job.cameras.size() > static_cast<std::size_t>(octree::Octree::kMaxCameras)) {
@@ -247,7 +243,8 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
       ->required();
   cmd->add_option("--bounds", flags->bounds, "XMIN YMIN ZMIN XMAX YMAX ZMAX (m)")
       ->required()
-      ->expected(6);
+      ->expected(6)
+      ->check(hg::cli::kFinite);
   cmd->add_option("--depth", flags->depth, "Octree depth; finest cell = bounds / 2^depth")
       ->required()
       ->check(CLI::Range(3, 16));
@@ -273,7 +270,8 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
   cmd->add_option("--min-component-m3", flags->min_component_m3,
                   "Knowledge filter: report occupied components below this volume as free "
                   "in --query (off: 0)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kFinite);
   cmd->callback([flags, exit_code] { *exit_code = RunCarve(*flags); });
 }
 

@@ -8,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "common/cli_checks.h"
 #include "geometry/camera_yaml.h"
 #include "hullguard/carve.h"
 #include "hullguard/commands.h"
@@ -151,7 +152,8 @@ void RegisterDemo(CLI::App& app, int* exit_code) {
   cmd->add_option("--frames", flags->frames, "Frames to simulate")->check(CLI::Range(1, 100000));
   cmd->add_option("--every", flags->every, "Write a snapshot every N frames")
       ->check(CLI::Range(1, 100000));
-  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)");
+  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--depth", flags->depth, "Octree depth")->check(CLI::Range(3, 12));
   cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
   cmd->callback([flags, exit_code] { *exit_code = RunDemo(*flags); });

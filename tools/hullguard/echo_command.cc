@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "common/cli_checks.h"
 #include "hullguard.h"
 #include "hullguard/commands.h"
 #include "hullguard/snapshot_picture.h"
@@ -479,10 +480,12 @@ void RegisterEcho(CLI::App& app, int* exit_code) {
   cmd->add_option("--count", flags->count, "Exit after this many occupancy samples (0: never)")
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--timeout", flags->timeout_s, "Give up after this many seconds (0: never)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kFinite);
   cmd->add_option("--deadline-ms", flags->deadline_ms,
                   "Requested deadline (ms); must be >= the daemon's two cycles to match")
-      ->check(CLI::Range(1.0, 3.6e6));
+      ->check(CLI::Range(1.0, 3.6e6))
+      ->check(hg::cli::kFinite);
   cmd->add_flag("--json", flags->json, "One JSON object per line");
   cmd->add_option("--topic", flags->topic, "Print samples of this topic only")
       ->check(CLI::IsMember({"occupancy", "status", "tracks", "all"}));

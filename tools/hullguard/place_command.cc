@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "common/cli_checks.h"
 #include "common/config_error.h"
 #include "geometry/camera_yaml.h"
 #include "hullguard/commands.h"
@@ -222,17 +223,23 @@ void RegisterPlace(CLI::App& app, int* exit_code) {
   cmd->add_option("--intrinsics", flags->intrinsics,
                   "Camera intrinsics: a cameras file (first camera) or width/height/K; default: "
                   "the scene's first camera");
-  cmd->add_option("--voxel", flags->voxel_m, "Voxel edge of the objective (m)");
+  cmd->add_option("--voxel", flags->voxel_m, "Voxel edge of the objective (m)")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--render-width", flags->render_width,
                   "Width of the reduced image on which visibility is decided (pixels)");
-  cmd->add_option("--person-radius", flags->person_radius_m, "Sample person capsule radius (m)");
-  cmd->add_option("--person-height", flags->person_height_m, "Sample person height (m)");
+  cmd->add_option("--person-radius", flags->person_radius_m, "Sample person capsule radius (m)")
+      ->check(hg::cli::kFinite);
+  cmd->add_option("--person-height", flags->person_height_m, "Sample person height (m)")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--person-spacing", flags->person_spacing_m,
-                  "Spacing of the sample person grid (m)");
+                  "Spacing of the sample person grid (m)")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--coverage-weight", flags->coverage_weight,
-                  "Weight of the K-coverage share in the score");
+                  "Weight of the K-coverage share in the score")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--sigma", flags->sigma,
-                  "Initial CMA-ES step, as a share of each variable's range");
+                  "Initial CMA-ES step, as a share of each variable's range")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--threads", flags->threads, "Evaluation threads (results do not depend on it)");
   cmd->add_option("--out", flags->out, "Camera block to write (daemon config format)")->required();
   cmd->add_option("--report", flags->report, "Report directory (report.md, report.json, PNGs)")

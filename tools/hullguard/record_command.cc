@@ -14,6 +14,7 @@
 #include "app/config.h"
 #include "app/pipeline_setup.h"
 #include "capture/recording.h"
+#include "common/cli_checks.h"
 #include "common/config_error.h"
 #include "hullguard/commands.h"
 
@@ -222,7 +223,8 @@ void RegisterRecord(CLI::App& app, int* exit_code) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", flags->out, "Recording folder to create (docs/cameras.md)")->required();
   cmd->add_option("--seconds", flags->seconds, "Stop after this long (0: at SIGINT or SIGTERM)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kFinite);
   cmd->add_option("--queue", flags->queue,
                   "Frames buffered per camera between capture and writing; a frame arriving "
                   "with the queue full is lost and counted")

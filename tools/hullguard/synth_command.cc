@@ -11,6 +11,7 @@
 
 #include <yaml-cpp/yaml.h>
 
+#include "common/cli_checks.h"
 #include "common/config_error.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
@@ -192,7 +193,8 @@ void RegisterSynth(CLI::App& app, int* exit_code) {
       "synth", "Render a scene: masks, colour frames, cameras, obstacles, ground truth");
   cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
   cmd->add_option("--frames", flags->frames, "Number of frames")->check(CLI::Range(1, 1000000));
-  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)");
+  cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
+      ->check(hg::cli::kFinite);
   cmd->add_option("--out", flags->out,
                   "Output folder: new, empty or an earlier synth output (docs/synth.md)")
       ->required();
