@@ -110,7 +110,7 @@ std::vector<RecordedFrame> ReadIndex(const std::string& path) {
     const bool ok = n == 5 && ParseInt(field[0], &number) && ParseInt(field[1], &f.stamp_ns) &&
                     (field[2].empty() || ParseInt(field[2], &device)) &&
                     ParseInt(field[3], &f.source_index) && !field[4].empty() &&
-                    field[4].find('/') == std::string_view::npos && field[4] != "." &&
+                    field[4].find_first_of("/,") == std::string_view::npos && field[4] != "." &&
                     field[4] != "..";
     if (!ok) {
       throw ConfigError::At(path, line,
