@@ -1,4 +1,5 @@
 #include "geometry/obstacle_depth.h"
+#include "support/random_scene.h"
 
 #include <algorithm>
 #include <cmath>
@@ -88,7 +89,7 @@ TEST(RenderObstacleDepthTest, NearDepthIsALowerBoundOnRandomScenes) {
   std::uniform_real_distribution<double> uniform(0.0, 1.0);
   long long checks = 0;
   long long sub_pixel_checks = 0;
-  for (int scene = 0; scene < 60; ++scene) {
+  for (int scene = 0; scene < testing::SoakSeeds(60); ++scene) {
     SCOPED_TRACE(scene);
     const double fx = 120 + 60 * uniform(rng);
     CameraModel camera = MakeCamera(160, 120, fx, fx * (0.9 + 0.2 * uniform(rng)),

@@ -1,6 +1,7 @@
 #include "silhouette/tile_dilation.h"
 
 #include "silhouette/quadtree.h"
+#include "support/random_scene.h"
 
 #include <gtest/gtest.h>
 
@@ -47,7 +48,7 @@ std::vector<int> DistanceToForeground(const common::ImageU8& mask) {
 TEST(DilateSquare, EqualsOpenCvsIteratedSquareDilation) {
   std::mt19937 rng(17);
   DilateScratch scratch;
-  for (int trial = 0; trial < 80; ++trial) {
+  for (int trial = 0; trial < testing::SoakSeeds(80); ++trial) {
     const int w = 1 + static_cast<int>(rng() % 233), h = 1 + static_cast<int>(rng() % 61);
     const int r = static_cast<int>(rng() % 13);  // Beyond one tile too.
     // Dense, and sparse enough that most tiles hold no foreground.
@@ -93,7 +94,7 @@ TEST(DilateSquare, EqualsOpenCvsIteratedSquareDilation) {
 
 TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
   std::mt19937_64 rng(7);
-  for (int trial = 0; trial < 12; ++trial) {
+  for (int trial = 0; trial < testing::SoakSeeds(12); ++trial) {
     const int w = 61 + trial * 3, h = 45 + trial;  // Not multiples of the tile size.
     const common::ImageU8 mask = RandomBlobs(w, h, 1 + trial % 4, rng);
     const std::vector<int> dist = DistanceToForeground(mask);

@@ -1,4 +1,5 @@
 #include "silhouette/undistort.h"
+#include "support/random_scene.h"
 
 #include <algorithm>
 #include <array>
@@ -82,7 +83,7 @@ TEST(ConservativeUndistorterTest, EveryObjectPointStaysForeground) {
   const int h = 240;
   long long checked = 0;
   long long checked_inside = 0;
-  for (int trial = 0; trial < 10; ++trial) {
+  for (int trial = 0; trial < testing::SoakSeeds(10); ++trial) {
     const double fx = uniform(250, 400);
     const CameraModel cam = MakeCamera(
         w, h, fx, fx * uniform(0.95, 1.05), w / 2.0 + uniform(-10, 10), h / 2.0 + uniform(-10, 10),
@@ -267,7 +268,7 @@ TEST(ConservativeUndistorterTest, TilesEqualThePerPixelMap) {
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * unit(rng); };
   long long pure_tiles = 0;
-  for (int trial = 0; trial < 12; ++trial) {
+  for (int trial = 0; trial < testing::SoakSeeds(12); ++trial) {
     const int w = 150 + trial * 7, h = 101 + trial * 3;
     const double fx = uniform(90, 200);
     ConservativeUndistorter undistorter(MakeCamera(
