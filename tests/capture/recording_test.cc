@@ -199,17 +199,20 @@ TEST_F(RecordingTest, RefusesAFolderThatHoldsARecording) {
   EXPECT_THROW(RecordingWriter(dir_.string(), {Camera("cam", 8, 6)}, "test"), common::ConfigError);
 }
 
+// A recording of camera "cam" (8 x 6 masks) with two frames, stamped 5000 and 5001.
+void WriteTwoMasks(const fs::path& dir) {
+  RecordingWriter writer(dir.string(), {Camera("cam", 8, 6)}, "test");
+  for (std::uint64_t i = 0; i < 2; ++i) {
+    Frame f = RandomFrame(FrameKind::kMask, 8, 6, i);
+    f.stamp_ns = 5000 + static_cast<std::int64_t>(i);
+    ASSERT_TRUE(writer.Write(0, i, f));
+  }
+}
+
 // A half-written last index line (a crash while writing) is left out; a bad
 // line is an error naming the file and the line.
 TEST_F(RecordingTest, CutShortIndexReadsAndBadLinesAreReported) {
-  {
-    RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
-    for (std::uint64_t i = 0; i < 2; ++i) {
-      Frame f = RandomFrame(FrameKind::kMask, 8, 6, i);
-      f.stamp_ns = 5000 + static_cast<std::int64_t>(i);
-      ASSERT_TRUE(writer.Write(0, i, f));
-    }
-  }
+  WriteTwoMasks(dir_);
   const fs::path index = dir_ / "frames" / "cam" / "index.csv";
   std::ofstream(index, std::ios::app) << "2,5002,,2,0000";  // No newline: cut short.
   EXPECT_EQ(ReadRecordingCamera(dir_.string(), "cam").frames.size(), 2U);
@@ -447,14 +450,7 @@ TEST_F(RecordingTest, MeaninglessRatesOffsetsAndStampsAreRefused) {
   }
 
   fs::remove_all(dir_);
-  {
-    RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
-    for (std::uint64_t i = 0; i < 2; ++i) {
-      Frame f = RandomFrame(FrameKind::kMask, 8, 6, i);
-      f.stamp_ns = 5000 + static_cast<std::int64_t>(i);
-      ASSERT_TRUE(writer.Write(0, i, f));
-    }
-  }
+  WriteTwoMasks(dir_);
   const fs::path index = dir_ / "frames" / "cam" / "index.csv";
   const std::string good = [&] {
     std::ifstream in(index);
