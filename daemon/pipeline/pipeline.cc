@@ -308,7 +308,7 @@ void Pipeline::FusionLoop() {
     snapshot->health.cycle_ms = MsSince(cycle_start);
     snapshot->health.phase_lock = options_.align_to_frames;
     snapshot->health.phase_locked = options_.align_to_frames && phase.locked();
-    latest_.store(snapshot, std::memory_order_release);
+    latest_.Store(snapshot);
     if (consumer_) consumer_(snapshot);
     if (options_.align_to_frames) {
       std::size_t n = 0;
@@ -323,7 +323,7 @@ void Pipeline::FusionLoop() {
 
 std::shared_ptr<const OccupancySnapshot> Pipeline::Step(std::int64_t now_ns) {
   std::shared_ptr<OccupancySnapshot> snapshot = RunCycle(now_ns, octree::UpdateControl{}, 0.0);
-  latest_.store(snapshot, std::memory_order_release);
+  latest_.Store(snapshot);
   return snapshot;
 }
 

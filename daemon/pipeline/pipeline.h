@@ -16,6 +16,7 @@
 #include "capture/camera_source.h"
 #include "common/heartbeat.h"
 #include "common/latest_value.h"
+#include "common/shared_slot.h"
 #include "geometry/camera.h"
 #include "geometry/mesh.h"
 #include "octree/octree.h"
@@ -148,7 +149,7 @@ class Pipeline {
 
   /// The newest snapshot (nullptr before the first cycle). Thread-safe.
   [[nodiscard]] std::shared_ptr<const OccupancySnapshot> Latest() const {
-    return latest_.load(std::memory_order_acquire);
+    return latest_.Load();
   }
 
  private:
@@ -240,7 +241,7 @@ class Pipeline {
   std::unique_ptr<PublishedGrid> grid_;      // The snapshots' cells from the tree.
   std::unique_ptr<BlobFilter> blob_filter_;  // With options_.knowledge_filter_m3 > 0.
   double published_cell_m3_ = 0.0;
-  std::atomic<std::shared_ptr<const OccupancySnapshot>> latest_;
+  common::SharedSlot<const OccupancySnapshot> latest_;
   std::atomic<bool> stop_{false};
   std::vector<std::thread> threads_;
   std::uint64_t sequence_ = 0;
