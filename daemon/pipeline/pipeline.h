@@ -148,9 +148,7 @@ class Pipeline {
   std::shared_ptr<const OccupancySnapshot> Step(std::int64_t now_ns);
 
   /// The newest snapshot (nullptr before the first cycle). Thread-safe.
-  [[nodiscard]] std::shared_ptr<const OccupancySnapshot> Latest() const {
-    return latest_.Load();
-  }
+  [[nodiscard]] std::shared_ptr<const OccupancySnapshot> Latest() const { return latest_.Load(); }
 
  private:
   struct Slot {
