@@ -31,8 +31,9 @@ void CameraHealthMonitor::Reset() {
   reference_edges_.clear();
   std::fill(reference_sum_.begin(), reference_sum_.end(), 0);
   identical_run_ = 0;
+  recent_count_ = 0;
+  recent_next_ = 0;
   moved_run_ = 0;
-  have_previous_ = false;
   moved_ = false;
   edges_kept_ = 1.0;
   fault_ = CameraFault::kNone;
@@ -87,14 +88,18 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
   Sample(frame);
   const std::size_t n = current_.size();
 
-  // Frozen: bit-identical samples frame after frame. Real sensors have noise.
-  if (have_previous_ && std::memcmp(current_.data(), previous_.data(), n) == 0) {
-    ++identical_run_;
-  } else {
-    identical_run_ = 0;
-  }
+  // Frozen: samples bit-identical to one of the last few frames, frame after
+  // frame (a driver re-delivering its last buffer, or cycling through its
+  // few stale ones). Real sensors have noise: no frame repeats another.
+  std::uint64_t hash = 0xcbf29ce484222325ULL;  // FNV-1a, 64 bits.
+  for (const std::uint8_t g : current_) hash = (hash ^ g) * 0x100000001b3ULL;
+  const bool seen = std::find(recent_.begin(), recent_.begin() + recent_count_, hash) !=
+                    recent_.begin() + recent_count_;
+  identical_run_ = seen ? identical_run_ + 1 : 0;
+  recent_[recent_next_] = hash;
+  recent_next_ = (recent_next_ + 1) % static_cast<int>(recent_.size());
+  recent_count_ = std::min(recent_count_ + 1, static_cast<int>(recent_.size()));
   std::swap(current_, previous_);  // previous_ now holds this frame.
-  have_previous_ = true;
   const std::vector<std::uint8_t>& img = previous_;
 
   std::uint64_t sum = 0;

@@ -3,6 +3,7 @@
 /// Image-level camera faults: frozen frames, black or saturated images, and a
 /// camera that moved (bumped) since its reference view was taken.
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -27,7 +28,7 @@ struct CameraHealthOptions {
   /// a step or more counts as moved (8 px: about 0.4 degrees at Full HD with
   /// a 1.45 rad lens).
   int sample_step_px = 8;
-  int frozen_frames = 15;        ///< Identical consecutive frames before "frozen".
+  int frozen_frames = 15;        ///< Repeated frames in a row before "frozen".
   int dark_level = 12;           ///< Mean grey below this: black.
   int saturated_level = 243;     ///< Mean grey above this: saturated.
   int reference_frames = 10;     ///< Frames averaged into the reference view at start-up.
@@ -55,10 +56,10 @@ class CameraHealthMonitor {
   /// Checks one frame and returns the camera's fault now.
   CameraFault Check(const Frame& frame);
   [[nodiscard]] CameraFault fault() const { return fault_; }
-  /// The last frame checked repeats the one before, sample for sample: it
-  /// brings nothing new (a real sensor's noise differs from frame to frame),
-  /// so it must not count as a fresh view of the cell. Frozen follows after
-  /// `frozen_frames` of these in a row.
+  /// The last frame checked repeats one of the kRecentFrames before it,
+  /// sample for sample: it brings nothing new (a real sensor's noise differs
+  /// from frame to frame), so it must not count as a fresh view of the cell.
+  /// Frozen follows after `frozen_frames` of these in a row.
   [[nodiscard]] bool repeated() const { return identical_run_ > 0; }
   /// Share of the reference edges found in the last frame (1 before the
   /// reference exists).
@@ -77,9 +78,14 @@ class CameraHealthMonitor {
   std::vector<std::uint8_t> reference_;
   std::vector<std::uint32_t> reference_edges_;  // Sample indices of reference edges.
   int reference_count_ = 0;
-  int identical_run_ = 0;
+  /// Frames a repeat is looked for among: a driver may cycle through its few
+  /// buffers (V4L2 drivers commonly hold four).
+  static constexpr int kRecentFrames = 4;
+  std::array<std::uint64_t, kRecentFrames> recent_{};  // Sample hashes, a ring.
+  int recent_count_ = 0;
+  int recent_next_ = 0;
+  int identical_run_ = 0;  // Repeated frames in a row.
   int moved_run_ = 0;
-  bool have_previous_ = false;
   bool moved_ = false;
   double edges_kept_ = 1.0;
   CameraFault fault_ = CameraFault::kNone;

@@ -91,6 +91,31 @@ TEST(CameraHealthTest, FrozenBlackAndSaturatedImages) {
   EXPECT_EQ(frames, CameraHealthOptions{}.frozen_frames + 1);
   EXPECT_EQ(monitor.Check(camera.At(13)), CameraFault::kNone) << "a new image ends it";
 
+  // A driver cycling through three stale buffers: each frame repeats one of
+  // the last few, so from the fourth on they bring nothing new, and the run of
+  // repeats ends frozen as a single repeated frame does.
+  CameraHealthMonitor cycling;
+  const Frame stale[3] = {camera.At(20), camera.At(21), camera.At(22)};
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(cycling.Check(stale[i]), CameraFault::kNone);
+    EXPECT_FALSE(cycling.repeated()) << i;
+  }
+  fault = CameraFault::kNone;
+  frames = 0;
+  while (fault == CameraFault::kNone && frames < 40) {
+    fault = cycling.Check(stale[frames % 3]);
+    EXPECT_TRUE(cycling.repeated()) << frames;
+    ++frames;
+  }
+  EXPECT_EQ(fault, CameraFault::kFrozen);
+  EXPECT_EQ(frames, CameraHealthOptions{}.frozen_frames);
+  // Frames of a live camera never repeat.
+  for (int i = 23; i < 40; ++i) {
+    cycling.Check(camera.At(i));
+    EXPECT_FALSE(cycling.repeated()) << i;
+  }
+  EXPECT_EQ(cycling.fault(), CameraFault::kNone);
+
   Frame black = camera.At(14);
   std::fill(black.rgb.pixels.begin(), black.rgb.pixels.end(), 3);
   EXPECT_EQ(monitor.Check(black), CameraFault::kBlack);
