@@ -22,6 +22,7 @@
 #include "app/tracking_stage.h"
 #include "capture/recording.h"
 #include "common/config_error.h"
+#include "common/input_file.h"
 #include "common/limits.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
@@ -1688,14 +1689,8 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
 }
 
 Config LoadConfig(const std::string& path) {
-  std::error_code ec;
-  if (fs::is_directory(path, ec)) throw ConfigError::At(path, 0, "is a folder, not a config file");
-  std::ifstream in(path);
-  if (!in) throw ConfigError::At(path, 0, "cannot open");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw ConfigError::At(path, 0, "read error");
-  return ParseConfig(text.str(), path, fs::path(path).parent_path().string());
+  return ParseConfig(common::ReadInputFile(path, "config"), path,
+                     fs::path(path).parent_path().string());
 }
 
 std::string Summary(const Config& config) {

@@ -1,10 +1,9 @@
 #include "common/yaml_file.h"
 
-#include <filesystem>
 #include <fstream>
-#include <sstream>
 
 #include "common/config_error.h"
+#include "common/input_file.h"
 
 namespace hg::common {
 
@@ -19,15 +18,7 @@ YAML::Node ParseYaml(const std::string& text, const std::string& file) {
 }
 
 YAML::Node LoadYamlFile(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    throw ConfigError::At(path, 0, "is a folder, not a file");
-  std::ifstream in(path);
-  if (!in) throw ConfigError::At(path, 0, "cannot open");
-  std::ostringstream text;
-  text << in.rdbuf();
-  if (in.bad()) throw ConfigError::At(path, 0, "read error");
-  return ParseYaml(text.str(), path);
+  return ParseYaml(ReadInputFile(path, ""), path);
 }
 
 void WriteYamlFile(const std::string& path, const YAML::Emitter& out) {

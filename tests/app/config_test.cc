@@ -874,11 +874,11 @@ TEST(HullguarddTest, CommandLineErrorsExitWithTwo) {
   const testing::ProcessResult missing =
       testing::RunTool(HG_HULLGUARDD_BIN, "--config /nonexistent/hullguard.yaml");
   EXPECT_EQ(missing.code, 2);
-  EXPECT_EQ(missing.err, "/nonexistent/hullguard.yaml: cannot open\n");
+  EXPECT_EQ(missing.err, "/nonexistent/hullguard.yaml: cannot open config: no such file\n");
   const testing::ProcessResult check =
       testing::RunTool(HG_HULLGUARDD_BIN, "--check-config /nonexistent/hullguard.yaml");
   EXPECT_EQ(check.code, 2);
-  EXPECT_EQ(check.err, "/nonexistent/hullguard.yaml: cannot open\n");
+  EXPECT_EQ(check.err, "/nonexistent/hullguard.yaml: cannot open config: no such file\n");
   const testing::ProcessResult folder = testing::RunTool(HG_HULLGUARDD_BIN, "--config /");
   EXPECT_EQ(folder.code, 2);
   EXPECT_EQ(Lines(folder.err).size(), 1u) << folder.err;

@@ -409,7 +409,7 @@ TEST(CameraYamlErrorTest, MissingFile) {
     (void)LoadCamerasFile(path);
     ADD_FAILURE() << "no error";
   } catch (const ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()), path + ": cannot open");
+    EXPECT_EQ(std::string(e.what()), path + ": cannot open: no such file");
   }
 }
 

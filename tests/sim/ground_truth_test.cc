@@ -362,7 +362,8 @@ TEST_F(MalformedGroundTruthTest, BrokenYamlAndMissingFile) {
     (void)ReadGroundTruth(TempPath("does_not_exist.yaml"));
     FAIL() << "expected ConfigError";
   } catch (const common::ConfigError& e) {
-    EXPECT_EQ(std::string(e.what()), TempPath("does_not_exist.yaml") + ": cannot open");
+    EXPECT_EQ(std::string(e.what()),
+              TempPath("does_not_exist.yaml") + ": cannot open: no such file");
   }
 }
 
