@@ -715,7 +715,8 @@ class RepeatingSource : public capture::CameraSource {
   common::ImageRgb8 last_;
 };
 
-// A frame that repeats the one before is no new view of the cell: the camera
+// A frame that repeats the one before (the simplest of the repeats the health
+// monitor finds among a camera's last four frames) is no new view of the cell: the camera
 // gets no fresh frame from the first repeat on and turns stale at its timeout,
 // well before the repeats count as frozen; it never certifies anything free
 // on its old image meanwhile.
