@@ -84,6 +84,21 @@ bool ParseInt(std::string_view token, long long* value) {
   return ec == std::errc() && ptr == end;
 }
 
+// The parts of a face corner after its position index: none, "/vt",
+// "//vn" or "/vt/vn", each present index an integer.
+bool ValidTextureAndNormal(std::string_view corner) {
+  const size_t first = corner.find('/');
+  if (first == std::string_view::npos) return true;
+  std::string_view rest = corner.substr(first + 1);
+  const size_t second = rest.find('/');
+  const std::string_view texture = rest.substr(0, second);
+  long long unused = 0;
+  if (!texture.empty() && !ParseInt(texture, &unused)) return false;
+  if (second == std::string_view::npos) return !texture.empty();
+  const std::string_view normal = rest.substr(second + 1);
+  return ParseInt(normal, &unused);
+}
+
 }  // namespace
 
 TriangleMesh LoadObj(const std::string& path) {
@@ -118,10 +133,12 @@ TriangleMesh LoadObj(const std::string& path) {
       polygon.clear();
       const long long vertex_count = static_cast<long long>(mesh.vertices.size());
       for (std::string_view token = NextToken(rest); !token.empty(); token = NextToken(rest)) {
-        // Only the position index (before the first '/') is used; vt/vn are ignored.
+        // v, v/vt, v//vn or v/vt/vn: only the position index is used, but
+        // the texture and normal indices must still be integers (or empty),
+        // so a damaged file is refused rather than half read.
         const std::string_view position = token.substr(0, token.find('/'));
         long long index = 0;
-        if (!ParseInt(position, &index)) {
+        if (!ParseInt(position, &index) || !ValidTextureAndNormal(token)) {
           throw common::ConfigError::At(path, line_number,
                                         "f: bad index '" + std::string(token) + "'");
         }
