@@ -338,7 +338,9 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(bytes->data()),
                static_cast<std::streamsize>(bytes->size())) ||
-      bytes->empty()) {
+      bytes->empty() ||
+      !common::IsCompleteImage(
+          std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size()))) {
     return false;
   }
   const cv::Mat encoded(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());

@@ -1,5 +1,6 @@
 #include "common/input_file.h"
 
+#include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
@@ -39,6 +40,48 @@ std::string ReadInputFile(const std::string& path, const std::string& what,
   }
   if (in.bad()) throw ConfigError::At(path, 0, "read error");
   return text;
+}
+
+bool IsCompleteImage(std::string_view text) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
+  static constexpr unsigned char kPngSignature[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  static constexpr unsigned char kPngEnd[] = {0,   0,   0,    0,    'I',  'E',
+                                              'N', 'D', 0xAE, 0x42, 0x60, 0x82};
+  const std::size_t n = text.size();
+  if (n >= sizeof(kPngSignature) && std::memcmp(bytes, kPngSignature, 8) == 0) {
+    return n >= sizeof(kPngSignature) + sizeof(kPngEnd) &&
+           std::memcmp(bytes + n - sizeof(kPngEnd), kPngEnd, sizeof(kPngEnd)) == 0;
+  }
+  if (n >= 2 && bytes[0] == 0xFF && bytes[1] == 0xD8) {
+    return n >= 4 && bytes[n - 2] == 0xFF && bytes[n - 1] == 0xD9;
+  }
+  if (n >= 2 && bytes[0] == 'P' && (bytes[1] == '5' || bytes[1] == '6')) {
+    // Header: magic, width, height, maxval, each after whitespace or
+    // comments, then one whitespace byte before the pixels.
+    std::size_t at = 2;
+    long long numbers[3] = {0, 0, 0};
+    for (long long& number : numbers) {
+      while (at < n && (std::isspace(bytes[at]) != 0 || bytes[at] == '#')) {
+        if (bytes[at] == '#') {
+          while (at < n && bytes[at] != '\n') ++at;
+        } else {
+          ++at;
+        }
+      }
+      const std::size_t start = at;
+      while (at < n && at - start < 9 && std::isdigit(bytes[at]) != 0) {
+        number = number * 10 + (bytes[at] - '0');
+        ++at;
+      }
+      if (at == start || at >= n || std::isspace(bytes[at]) == 0) return false;
+    }
+    ++at;  // The single whitespace byte.
+    const long long channels = bytes[1] == '6' ? 3 : 1;
+    const long long sample_bytes = numbers[2] > 255 ? 2 : 1;
+    return n >= at &&
+           static_cast<long long>(n - at) >= numbers[0] * numbers[1] * channels * sample_bytes;
+  }
+  return true;
 }
 
 }  // namespace hg::common

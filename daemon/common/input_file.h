@@ -4,6 +4,7 @@
 
 #include <fstream>
 #include <string>
+#include <string_view>
 
 namespace hg::common {
 
@@ -16,5 +17,13 @@ namespace hg::common {
 /// The whole content of `path`, with OpenInputFile's errors and "read error".
 [[nodiscard]] std::string ReadInputFile(const std::string& path, const std::string& what,
                                         std::ios::openmode mode = std::ios::in);
+
+/// Whether an encoded image of a format that decoders accept half-read is all
+/// there: a PNG ends with its IEND chunk, a JPEG with its end-of-image marker,
+/// a binary PGM/PPM holds every pixel its header announces. Other formats are
+/// left to their decoder (true). A file cut short (disk full while recording,
+/// a copy interrupted) is to be refused rather than decoded: libjpeg fills the
+/// missing rows with grey, and libpng and OpenCV print on stderr.
+[[nodiscard]] bool IsCompleteImage(std::string_view bytes);
 
 }  // namespace hg::common

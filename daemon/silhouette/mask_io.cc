@@ -11,11 +11,27 @@
 
 namespace hg::silhouette {
 
+namespace {
+
+// The image file at `path` decoded with `flags`; empty when it is cut short
+// or no image. Missing, a folder or unreadable: ConfigError naming it.
+cv::Mat Decode(const std::string& path, int flags) {
+  std::string bytes = common::ReadInputFile(path, "image", std::ios::binary);
+  if (bytes.empty() || !common::IsCompleteImage(bytes)) return {};
+  const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data());
+  try {
+    return cv::imdecode(encoded, flags);
+  } catch (const cv::Exception&) {
+    return {};
+  }
+}
+
+}  // namespace
+
 common::ImageU8 ReadGreyImage(const std::string& path) {
-  (void)common::OpenInputFile(path, "image");  // Missing, a folder, unreadable: named.
   // ANYDEPTH keeps a 16-bit image 16-bit, refused below: a plain GRAYSCALE read
   // would scale it to 8 bits, so 255 would read as 0 (foreground as background).
-  const cv::Mat m = cv::imread(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+  const cv::Mat m = Decode(path, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
   if (m.empty() || m.type() != CV_8UC1) {
     throw common::ConfigError(path + ": not a readable 8-bit image");
   }
@@ -48,8 +64,7 @@ void WriteGreyImage(const std::string& path, const common::ImageU8& image) {
 }
 
 common::ImageRgb8 ReadRgbImage(const std::string& path) {
-  (void)common::OpenInputFile(path, "image");  // Missing, a folder, unreadable: named.
-  const cv::Mat bgr = cv::imread(path, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
+  const cv::Mat bgr = Decode(path, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
   if (bgr.empty() || bgr.type() != CV_8UC3) {
     throw common::ConfigError(path + ": not a readable 8-bit image");
   }

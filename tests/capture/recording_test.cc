@@ -18,6 +18,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include "capture/replay_source.h"
 #include "common/config_error.h"
@@ -418,6 +419,57 @@ TEST_F(RecordingTest, SixteenBitAndFolderFramesAreUnreadable) {
   EXPECT_FALSE(source.ReadFrame(1, &f));
   ASSERT_TRUE(source.ReadFrame(2, &f));
   EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
+}
+
+// A frame file cut short (a disk full while recording, a copy interrupted) is
+// unreadable, whatever its format, and is refused before a decoder sees it:
+// libjpeg would fill the missing rows with grey and call it a frame, and libpng
+// prints its complaint on stderr, where the daemon's log would carry it once per
+// frame read.
+TEST_F(RecordingTest, FramesCutShortAreUnreadableAndQuiet) {
+  const fs::path frames = dir_ / "masks" / "a";
+  fs::create_directories(frames);
+  constexpr int kFrames = 8;
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: " << kFrames
+      << ", masks: true, colour: false}\ncameras:\n  - {name: a}\n";
+  common::ImageU8 image(64, 48, 0);
+  for (int v = 0; v < image.height; ++v) {
+    for (int u = 0; u < image.width; ++u) image.At(u, v) = static_cast<std::uint8_t>(u * v);
+  }
+  const cv::Mat mat(image.height, image.width, CV_8UC1, image.pixels.data());
+  // Writes frame `index` encoded as `extension`, less its last `cut` bytes
+  // (kHalf: less half of them).
+  constexpr int kHalf = -1;
+  auto write = [&](int index, const char* extension, int cut) {
+    std::vector<unsigned char> bytes;
+    ASSERT_TRUE(cv::imencode(extension, mat, bytes));
+    bytes.resize(bytes.size() - (cut == kHalf ? bytes.size() / 2 : static_cast<std::size_t>(cut)));
+    char name[16];
+    std::snprintf(name, sizeof(name), "%06d.png", index);  // The synth layout's names.
+    std::ofstream(frames / name, std::ios::binary)
+        .write(reinterpret_cast<const char*>(bytes.data()),
+               static_cast<std::streamsize>(bytes.size()));
+  };
+  // Whole frames in three formats, then each cut: by its trailer only and by
+  // half of it.
+  write(0, ".png", 0);
+  write(1, ".pgm", 0);
+  write(2, ".jpg", 0);
+  write(3, ".png", 12);  // Without the IEND chunk.
+  write(4, ".png", kHalf);
+  write(5, ".pgm", 1);
+  write(6, ".jpg", 2);  // Without the end-of-image marker.
+  write(7, ".jpg", kHalf);
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "a");
+  ReplaySource source(rec, SimClock{});
+  Frame f;
+  ::testing::internal::CaptureStderr();
+  std::vector<bool> read;
+  for (int i = 0; i < kFrames; ++i) read.push_back(source.ReadFrame(i, &f));
+  const std::string printed = ::testing::internal::GetCapturedStderr();
+  EXPECT_EQ(read, (std::vector<bool>{true, true, true, false, false, false, false, false}));
+  EXPECT_EQ(printed, "");
 }
 
 // Numbers of a manifest or an index that would put frames at meaningless

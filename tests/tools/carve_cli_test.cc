@@ -440,6 +440,14 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
     std::ofstream(Path("cut.png"), std::ios::binary) << bytes.substr(0, bytes.size() / 2);
   }
+  // A JPEG mask without its end-of-image marker, which libjpeg would decode,
+  // with a warning on stderr, as though it were whole.
+  {
+    silhouette::WriteGreyImage(Path("whole.jpg"), silhouette::ReadGreyImage(Path("m0.png")));
+    std::ifstream in(Path("whole.jpg"), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(Path("cut.jpg"), std::ios::binary) << bytes.substr(0, bytes.size() - 2);
+  }
   // A 16-bit mask, all 255 (foreground): a plain 8-bit decode would scale it
   // to 0, background, and certify the space free.
   {
@@ -496,6 +504,9 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
       {"carve" + cams + " --masks " + Path("cut.png") + Masks().substr(Masks().find(' ', 1)) +
            " --bounds 0 0 0 2 2 2 --depth 6",
        "cut.png"},
+      {"carve" + cams + " --masks " + Path("cut.jpg") + Masks().substr(Masks().find(' ', 1)) +
+           " --bounds 0 0 0 2 2 2 --depth 6",
+       "cut.jpg: not a readable 8-bit image"},
       {"carve --cameras " + Path("cams17.yaml") + " --masks" + seventeen_masks +
            " --bounds 0 0 0 2 2 2 --depth 4",
        "cams17.yaml: 17 cameras, at most 16"},

@@ -77,13 +77,13 @@ class SilencedStderr {
 
 // Reads a grey mask (colour is converted to grey). A missing, empty, truncated or
 // damaged file is a ConfigError naming it, and nothing else reaches stderr.
-// OpenCV's decoders reject truncated PNG and PGM data rather than return part of
-// the image (which would read as background, that is free space).
+// A file cut short is refused before decoding (libjpeg would fill the missing
+// rows with grey and call the mask whole).
 common::ImageU8 ReadMask(const std::string& path) {
   const std::string bytes = common::ReadInputFile(path, "mask", std::ios::binary);
   if (bytes.empty()) throw common::ConfigError(path + ": mask file is empty");
   cv::Mat m;
-  {
+  if (common::IsCompleteImage(bytes)) {
     const SilencedStderr quiet;
     try {
       // ANYDEPTH: a 16-bit mask stays 16-bit and is refused below; a plain
