@@ -14,8 +14,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <map>
-#include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -69,6 +67,7 @@ struct StatusSample {
   Clock::time_point received;
   bool degraded = false;
   std::vector<std::uint8_t> camera_states;
+  std::vector<float> frame_ages_ms;
 };
 
 std::int64_t RealtimeNs() {
@@ -85,8 +84,10 @@ class Controller {
         occupancy_topic_(participant_, &hullguard_Occupancy_desc,
                          publish::OccupancyTopicName("hullguard")),
         status_topic_(participant_, &hullguard_Status_desc, publish::StatusTopicName("hullguard")),
-        occupancy_(participant_, occupancy_topic_, publish::OccupancyReaderQos(1s).get()),
-        status_(participant_, status_topic_, publish::StatusReaderQos(1s).get()) {}
+        occupancy_(participant_, occupancy_topic_,
+                   testing::KeepingLast(publish::OccupancyReaderQos(1s)).get()),
+        status_(participant_, status_topic_,
+                testing::KeepingLast(publish::StatusReaderQos(1s)).get()) {}
 
   /// Polls both readers for `duration` (or until `enough` occupancy samples).
   void Collect(std::chrono::milliseconds duration, std::size_t enough = SIZE_MAX) {
@@ -130,9 +131,10 @@ class Controller {
     for (int i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
       const auto& s = *static_cast<const hullguard_Status*>(samples[i]);
-      StatusSample st{s.sequence, Clock::now(), s.degraded, {}};
+      StatusSample st{s.sequence, Clock::now(), s.degraded, {}, {}};
       for (std::uint32_t c = 0; c < s.cameras._length; ++c) {
         st.camera_states.push_back(s.cameras._buffer[c].state);
+        st.frame_ages_ms.push_back(s.cameras._buffer[c].frame_age_ms);
       }
       status_samples.push_back(std::move(st));
     }
@@ -193,7 +195,7 @@ TEST_F(DaemonE2E, ReceivedOccupancyCoversEveryPersonPoint) {
   EXPECT_FALSE(controller.status_samples.empty());
 }
 
-// One camera stops delivering 3 s in (a pulled cable). Within its timeout the
+// One camera stops delivering 4 s in (a pulled cable). Within its timeout the
 // status turns degraded and names the camera stale, and the occupied volume of
 // the static scene only grows.
 TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
@@ -218,7 +220,7 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
   const std::size_t last = text.rfind("demo_cell_standing.yaml}");
   ASSERT_NE(last, std::string::npos);
   text.replace(last, std::string("demo_cell_standing.yaml}").size(),
-               "demo_cell_standing.yaml, stop_after_s: 3}");
+               "demo_cell_standing.yaml, stop_after_s: 4}");
   const std::string config = (dir_ / "standing.yaml").string();
   std::ofstream(config) << text;
   const sim::Scene scene = sim::LoadScene(g_source_dir + "/tests/data/demo_cell_standing.yaml");
@@ -239,18 +241,16 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
       healthy_cycles.insert(st.sequence);
     }
   }
-  const std::int64_t stop_ns = epoch + 3'000'000'000LL;
+  const std::int64_t stop_ns = epoch + 4'000'000'000LL;
   // The baseline is the last healthy cycle 0.3 s before the stop (the healthy
   // cycles once the people stand list the same cells); from then on, through
   // the timeout, the turn to stale and after it, every sample must list each
   // of its cells.
   int free = 0;
-  std::map<std::uint64_t, std::int64_t> stamp_of;  // Cycle -> its stamp.
   const OccupancySample* baseline = nullptr;
   std::size_t before = 0, after = 0;
   for (std::size_t i = 0; i < controller.occupancy_samples.size(); ++i) {
     const OccupancySample& s = controller.occupancy_samples[i];
-    stamp_of[s.sequence] = s.stamp_ns;
     free += PointsReportedFree(scene, epoch, s, i);
     if (s.stamp_ns < stop_ns - 300'000'000LL && healthy_cycles.count(s.sequence) != 0 &&
         s.complete) {
@@ -296,18 +296,25 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
   }
   EXPECT_TRUE(healthy_seen);
   EXPECT_TRUE(degraded_seen) << daemon.Log();
-  // Stale within its timeout (200 ms) of the last frame, plus a cycle and the
-  // frames' own latency: the first cycle that reports it stale is stamped at
-  // most 400 ms after the stop.
-  std::optional<std::int64_t> first_stale_ns;
+  // Stale within its timeout (200 ms): every cycle whose newest frame of the
+  // camera is older than that reports it stale, and none reports it ok with
+  // an older frame. (The cycles' own times depend on the machine's load; the
+  // rule holds at each of them.)
+  constexpr float kTimeoutMs = 200.0F;
+  std::size_t past_timeout = 0, called_ok = 0, not_degraded = 0;
   for (const StatusSample& st : controller.status_samples) {
-    const auto stamp = stamp_of.find(st.sequence);
-    if (st.camera_states.size() == 4 && st.camera_states[3] == 2 && stamp != stamp_of.end()) {
-      first_stale_ns = std::min(first_stale_ns.value_or(INT64_MAX), stamp->second);
+    ASSERT_EQ(st.frame_ages_ms.size(), 4U);
+    if (st.frame_ages_ms[3] > kTimeoutMs + 0.01F) {
+      ++past_timeout;
+      called_ok += st.camera_states[3] == 1 ? 1 : 0;
+      not_degraded += st.degraded ? 0 : 1;
     }
   }
-  ASSERT_TRUE(first_stale_ns.has_value()) << "no stale cycle among the occupancy samples";
-  EXPECT_LE(*first_stale_ns - stop_ns, 400'000'000LL);
+  EXPECT_GT(past_timeout, 5U) << "the stopped camera's frames never aged past the timeout";
+  EXPECT_EQ(called_ok, 0U) << "of " << past_timeout
+                           << " cycles with camera 3's frames past its timeout, called it ok";
+  EXPECT_EQ(not_degraded, 0U) << "of " << past_timeout
+                              << " cycles with camera 3's frames past its timeout, not degraded";
   // The daemon's log names the stale camera within the timeout (200 ms) plus
   // a reporting period.
   EXPECT_NE(daemon.Log().find("cam3 stale"), std::string::npos) << daemon.Log();

@@ -11,9 +11,19 @@
 
 #include <gtest/gtest.h>
 
+#include "publish/dds.h"
 #include "support/daemon_process.h"
 
 namespace hg::testing {
+
+/// `qos` (a controller's reader QoS, which keeps the newest sample only) keeping
+/// the last `depth` samples instead: a test that polls its readers may be
+/// descheduled for longer than a cycle on a loaded machine, and must still see
+/// every sample.
+inline publish::dds::Qos KeepingLast(publish::dds::Qos qos, int depth = 256) {
+  dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, depth);
+  return qos;
+}
 
 class HullguarddRun : public DaemonProcess {
  public:

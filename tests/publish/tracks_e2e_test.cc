@@ -62,8 +62,10 @@ class Listener {
         tracks_topic_(participant_, &hullguard_Tracks_desc, publish::TracksTopicName(prefix)),
         occupancy_topic_(participant_, &hullguard_Occupancy_desc,
                          publish::OccupancyTopicName(prefix)),
-        tracks_(participant_, tracks_topic_, publish::TracksReaderQos(1s).get()),
-        occupancy_(participant_, occupancy_topic_, publish::OccupancyReaderQos(1s).get()) {}
+        tracks_(participant_, tracks_topic_,
+                testing::KeepingLast(publish::TracksReaderQos(1s)).get()),
+        occupancy_(participant_, occupancy_topic_,
+                   testing::KeepingLast(publish::OccupancyReaderQos(1s)).get()) {}
 
   /// Polls both readers for `duration` or until `enough` tracks samples.
   void Collect(std::chrono::milliseconds duration, std::size_t enough = SIZE_MAX) {
