@@ -263,7 +263,9 @@ TEST(PipelineTest, SilentCamerasTurnStaleWhateverTheStampsSay) {
 }
 
 // One silhouette worker shared by three cameras takes each camera's frames in
-// turn: every camera stays ok at its frame rate, and nothing is reported free.
+// turn: every camera stays ok, each gets its share of the frames (the rate
+// itself depends on the machine's load; the shares do not), and nothing is
+// reported free.
 TEST(PipelineTest, ASharedSilhouetteWorkerServesEveryCamera) {
   Rig rig(StandingScene(), 2.0, /*silhouette_workers=*/1);
   auto healthy = rig.WaitFor([](const OccupancySnapshot& s) {
@@ -275,9 +277,11 @@ TEST(PipelineTest, ASharedSilhouetteWorkerServesEveryCamera) {
   });
   ASSERT_NE(healthy, nullptr) << "no healthy snapshot with every camera's frames within 10 s";
   EXPECT_EQ(rig.PointsReportedFree(*healthy), 0);
+  std::uint64_t most = 0;
+  for (const CameraHealth& h : healthy->health.cameras) most = std::max(most, h.frames);
   for (const CameraHealth& h : healthy->health.cameras) {
     EXPECT_EQ(h.state, CameraState::kOk) << h.name;
-    EXPECT_GT(h.fps, 20.0) << h.name;
+    EXPECT_GE(h.frames * 5, most * 4) << h.name << ": " << h.frames << " frames of " << most;
   }
   rig.pipeline->Stop();
 }
@@ -347,7 +351,9 @@ TEST(PipelineTest, CaptureSkewIsCompensated) {
 
 // A recording folder in the synth layout: frames play at their capture times,
 // stamped with them; a corrupt frame is counted and skipped; after the last
-// frame the camera falls silent.
+// frame the camera falls silent. (In real time a frame whose time has passed
+// while the reader was descheduled is skipped, as a camera's would be: the
+// exact sequence is checked at full speed.)
 TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::temp_directory_path() / ("hg_replay_" + std::to_string(getpid()));
@@ -368,24 +374,46 @@ TEST(ReplaySourceTest, PlaysARecordingInRealTime) {
   }
   EXPECT_THROW((void)capture::ReadRecordingCamera(dir.string(), "cam9"), common::ConfigError);
 
-  const capture::SimClock clock = capture::SimClock::Now();
-  capture::ReplaySource source(capture::ReadRecordingCamera(dir.string(), "cam0"), clock);
-  capture::Frame frame;
-  std::vector<std::uint64_t> indices;
-  const auto give_up = std::chrono::steady_clock::now() + 5s;
-  while (indices.size() < 4 && std::chrono::steady_clock::now() < give_up) {
-    if (!source.Next(&frame, 100ms)) continue;
-    ASSERT_EQ(frame.kind, capture::FrameKind::kMask);
-    ASSERT_EQ(frame.grey.width, 64);
-    const auto foreground = std::count(frame.grey.pixels.begin(), frame.grey.pixels.end(), 255);
-    EXPECT_EQ(foreground, static_cast<long>(frame.index) + 1);
-    const double t = static_cast<double>(frame.stamp_ns - clock.epoch_ns) * 1e-9;
-    EXPECT_NEAR(t, static_cast<double>(frame.index) / 30.0 + 0.01, 1e-6);
-    indices.push_back(frame.index);
+  for (const capture::ReplayPacing pacing :
+       {capture::ReplayPacing::kRealtime, capture::ReplayPacing::kFast}) {
+    const bool real_time = pacing == capture::ReplayPacing::kRealtime;
+    SCOPED_TRACE(real_time ? "real time" : "fast");
+    const capture::SimClock clock = capture::SimClock::Now();
+    capture::ReplaySource source(capture::ReadRecordingCamera(dir.string(), "cam0"), clock,
+                                 capture::ReplayOptions{.pacing = pacing});
+    capture::Frame frame;
+    std::vector<std::uint64_t> indices;
+    const auto give_up = std::chrono::steady_clock::now() + 5s;
+    while ((indices.empty() || indices.back() != 4) && std::chrono::steady_clock::now() < give_up) {
+      if (!source.Next(&frame, 100ms)) continue;
+      ASSERT_EQ(frame.kind, capture::FrameKind::kMask);
+      ASSERT_EQ(frame.grey.width, 64);
+      const auto foreground = std::count(frame.grey.pixels.begin(), frame.grey.pixels.end(), 255);
+      EXPECT_EQ(foreground, static_cast<long>(frame.index) + 1);
+      if (real_time) {  // At full speed the stamp is the host time of delivery.
+        const std::chrono::nanoseconds t(frame.stamp_ns - clock.epoch_ns);
+        EXPECT_NEAR(t.count() * 1e-9, static_cast<double>(frame.index) / 30.0 + 0.01, 1e-6);
+        EXPECT_GE(std::chrono::steady_clock::now(), clock.start + t)
+            << "frame " << frame.index << " before its time";
+      }
+      indices.push_back(frame.index);
+    }
+    if (real_time) {
+      ASSERT_FALSE(indices.empty());
+      EXPECT_EQ(indices.back(), 4U);
+      for (std::size_t i = 0; i < indices.size(); ++i) {
+        EXPECT_NE(indices[i], 2U) << "the corrupt frame was delivered";
+        if (i > 0) {
+          EXPECT_LT(indices[i - 1], indices[i]);
+        }
+      }
+      EXPECT_LE(source.corrupt_frames(), 1U);
+    } else {
+      EXPECT_EQ(indices, (std::vector<std::uint64_t>{0, 1, 3, 4}));
+      EXPECT_EQ(source.corrupt_frames(), 1U);
+    }
+    EXPECT_FALSE(source.Next(&frame, 100ms)) << "the recording has ended";
   }
-  EXPECT_EQ(indices, (std::vector<std::uint64_t>{0, 1, 3, 4}));
-  EXPECT_EQ(source.corrupt_frames(), 1U);
-  EXPECT_FALSE(source.Next(&frame, 100ms)) << "the recording has ended";
   fs::remove_all(dir);
 }
 
