@@ -395,7 +395,12 @@ class Octree::Updater {
     // current, its subtree still needs the changes since its stamp.
     const bool coarse_here = (node.flags & kCoarse) != 0;
     if (coarse_here) unchanged = 0;
-    // A pending node's cache and subtree are exact as of its stamp only.
+    // A pending node's cache and subtree are exact as of its stamp only. Its
+    // subtree takes every change from then on, even when the stamp is this
+    // pass's own: a coarse pass that found no room to list it left it pending
+    // at its `since`, and the refinement pass starts with every change
+    // counted as applied.
+    if (pending) unchanged = 0;
     if ((pending || coarse_here) && node.stamp < since) {
       since = node.stamp;
       unchanged = 0;
@@ -563,9 +568,9 @@ class Octree::Updater {
         n.flags = kCapped | (recompute_all ? kPending : kCoarse) | (n.flags & kHasPending);
         k.capped.push_back(index);
       } else {
-        // No room to list it (not seen in practice: the list holds as many
-        // entries as the store has blocks): pending at once, as
-        // FinishCoarse() would leave it if no later pass got to it.
+        // No room to list it (the list holds as many entries as the store
+        // has blocks, which a store nearly full falls short of): pending at
+        // once, as FinishCoarse() would leave it if no later pass got to it.
         n.flags = kPending | (n.flags & kHasPending);
         n.valid = 0;
         ++k.pending;

@@ -1126,3 +1126,45 @@ TEST(OctreeStraddlingTest, ChangesBelowABoxAcrossTheCameraPlaneAreFound) {
 
 }  // namespace
 }  // namespace hg::octree
+
+namespace hg::octree {
+namespace {
+
+// Coarse first with a node store too small for the list of nodes the coarse
+// pass stops at: those it cannot list are left pending at once, and the
+// refinement pass must still apply this update's changes below them. Here a
+// ball in the last root splits it; then thin rods across the whole top layer
+// turn every root of that layer mixed, more of them than the list holds. No
+// point on a rod's axis may stay free from the first frame.
+TEST(OctreeCoarseFirstTest, NodesThatFindTheCappedListFullStillTakeTheChanges) {
+  const common::Box3 bounds{{0, 0, 0}, {2, 2, 2}};
+  const std::vector<geometry::CameraModel> cameras = {
+      scene::LookAtCamera({1.0, 1.0, 6.0}, {1.0, 1.0, 0.0}, 256, 256, 400.0)};
+  const auto views = testing::MakeViews(cameras, {});
+  OctreeConfig config;
+  config.bounds = bounds;
+  config.depth = 5;
+  config.boundary_coarsening = 0;
+  config.coarse_first_depth = 3;  // The coarse pass stops at the roots.
+  config.max_nodes = 1024;        // 128 blocks: a list of 128 for 320 mixed roots.
+  Octree tree(config, views);
+  Quadtrees qt(cameras);
+  qt.Build(testing::RenderMasks(cameras, {scene::Sphere{{1.85, 1.85, 1.85}, 0.03}}));
+  ASSERT_FALSE(tree.Update(qt.ptrs).aborted);
+  std::vector<scene::Shape> rods;
+  for (double y = 0.02; y < 2.0; y += 0.05) {
+    rods.push_back(scene::Capsule{{0.0, y, 1.9}, {2.0, y, 1.9}, 0.004});
+  }
+  qt.Build(testing::RenderMasks(cameras, rods));
+  ASSERT_FALSE(tree.Update(qt.ptrs).aborted);
+  int free_points = 0;
+  for (double y = 0.02; y < 2.0; y += 0.05) {
+    for (double x = 0.0; x <= 2.0; x += 0.01) {
+      free_points += tree.StateAt({x, y, 1.9}) == PointState::kFree ? 1 : 0;
+    }
+  }
+  EXPECT_EQ(free_points, 0) << "points on the rods' axes reported free";
+}
+
+}  // namespace
+}  // namespace hg::octree
