@@ -121,6 +121,37 @@ int ClipNear(const std::array<Eigen::Vector3d, 3>& tri, std::array<Eigen::Vector
   return count;
 }
 
+/// The point of triangle abc nearest to the origin (Ericson, Real-Time
+/// Collision Detection, 5.1.5: by the Voronoi region of the origin).
+Eigen::Vector3d NearestToOrigin(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = -a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Eigen::Vector3d bp = -b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+  const Eigen::Vector3d cp = -c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+  }
+  const double denom = va + vb + vc;
+  if (!(denom > 0)) {  // Degenerate (a segment or a point): the nearest corner.
+    const Eigen::Vector3d* best = &a;
+    if (b.squaredNorm() < best->squaredNorm()) best = &b;
+    if (c.squaredNorm() < best->squaredNorm()) best = &c;
+    return *best;
+  }
+  return a + ab * (vb / denom) + ac * (vc / denom);
+}
+
 /// Inclusive pixel index range [lo, hi] of the pixels whose squares may touch
 /// the coordinate interval [min, max]; empty (lo > hi) when outside [0, size).
 std::pair<int, int> PixelRange(double min, double max, double slack, int size) {
@@ -134,9 +165,31 @@ std::pair<int, int> PixelRange(double min, double max, double slack, int size) {
 class Rasteriser {
  public:
   Rasteriser(const CameraModel& camera, ObstacleDepthMap* map)
-      : k_(camera.K), width_(camera.width), height_(camera.height), map_(map) {}
+      : k_(camera.K), width_(camera.width), height_(camera.height), map_(map) {
+    // The part of the view in front of the near plane lies in a ball around
+    // the camera centre: its radius is the near plane's distance along the
+    // longest ray through a corner of the image (one pixel beyond it).
+    const Eigen::Matrix3d k_inv = camera.K.inverse();
+    double longest = 1.0;
+    for (const double u : {-1.5, camera.width + 0.5}) {
+      for (const double v : {-1.5, camera.height + 0.5}) {
+        const Eigen::Vector3d ray = k_inv * Eigen::Vector3d(u, v, 1.0);
+        longest = std::max(longest, ray.norm() / ray.z());
+      }
+    }
+    near_radius_ = kNearPlaneM * longest * (1.0 + 1e-6);
+  }
+
+  /// Whether a triangle came so close in front of the camera that the part of
+  /// it clipped at the near plane may be in view (an obstacle inside the lens
+  /// housing, or a mesh through the camera centre).
+  [[nodiscard]] bool blocked() const { return blocked_; }
 
   void Triangle(const std::array<Eigen::Vector3d, 3>& tri_C) {
+    if (!blocked_ && std::max({tri_C[0].z(), tri_C[1].z(), tri_C[2].z()}) > 0.0 &&
+        NearestToOrigin(tri_C[0], tri_C[1], tri_C[2]).norm() < near_radius_) {
+      blocked_ = true;
+    }
     std::array<Eigen::Vector3d, 4> poly;
     const int count = ClipNear(tri_C, &poly);
     if (count < 3) return;
@@ -273,6 +326,8 @@ class Rasteriser {
   int width_;
   int height_;
   ObstacleDepthMap* map_;
+  double near_radius_ = 0.0;
+  bool blocked_ = false;
 };
 
 }  // namespace
@@ -302,6 +357,12 @@ ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
                t[2] < vertex_count);
       rasteriser.Triangle({vertices_C[t[0]], vertices_C[t[1]], vertices_C[t[2]]});
     }
+  }
+  if (rasteriser.blocked()) {
+    // What the near plane cut off could cover any pixel, at a depth down to
+    // zero: nothing is certainly in front of it.
+    map.blocked = true;
+    std::fill(map.near_depth.begin(), map.near_depth.end(), 0.0F);
   }
   return map;
 }

@@ -26,11 +26,16 @@ struct ObstacleDepthMap {
   /// the pixel centre; kNone where that ray hits no obstacle. Used only to label
   /// space hidden behind obstacles (never to certify free space).
   std::vector<float> centre_depth;
+  /// An obstacle reaches within the near plane (1 mm) in front of the camera
+  /// centre, where it cannot be rendered: near_depth is then 0 everywhere, so
+  /// the camera certifies nothing free (it looks through its own housing).
+  bool blocked = false;
 };
 
 /// Renders the meshes into the depth maps of a pinhole camera (distortion is
 /// ignored: the octree works on undistorted masks). Triangles are clipped at a
-/// near plane in front of the camera.
+/// near plane 1 mm in front of the camera; one that reaches in front of the
+/// camera within it blocks the whole view (ObstacleDepthMap::blocked).
 [[nodiscard]] ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
                                                    const std::vector<TriangleMesh>& meshes);
 

@@ -50,6 +50,12 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
       runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
     }
     views.emplace_back(c.model.Pinhole(), obstacles);
+    if (views.back().depth_map().blocked) {
+      log::Warn(
+          "{}: an obstacle reaches within 1 mm in front of the camera centre (inside the lens): "
+          "the camera is taken as blocked and certifies no space free",
+          c.model.name);
+    }
     if (heartbeats_ != nullptr) {
       runtime->heartbeat = heartbeats_->Register(std::string("capture ").append(c.model.name));
     }

@@ -174,6 +174,47 @@ TEST(RenderObstacleDepthTest, TrianglesBehindTheCameraLeaveTheMapEmpty) {
   }
 }
 
+// Triangles are clipped 1 mm in front of the camera. One that reaches in
+// front of the camera within that distance (inside its lens) could cover any
+// pixel at any depth from 0 on: the whole view is blocked, never left clear.
+// Near but beside the view, behind the camera, or beyond the near plane: not.
+TEST(RenderObstacleDepthTest, AnObstacleInsideTheNearPlaneBlocksTheWholeView) {
+  const CameraModel camera = MakeCamera(40, 30, 30, 30, 19.5, 14.5);
+  auto plate = [](double x, double z, double half) {
+    TriangleMesh mesh;
+    mesh.vertices = {
+        {x - half, -half, z}, {x + half, -half, z}, {x + half, half, z}, {x - half, half, z}};
+    mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+    return mesh;
+  };
+  struct Case {
+    const char* what;
+    TriangleMesh mesh;
+    bool blocked;
+  };
+  const Case cases[] = {
+      {"plate 0.5 mm in front", plate(0.0, 5e-4, 5e-3), true},
+      {"plate 0.5 mm in front, its edge 0.2 mm beside the axis", plate(2e-4 + 5e-3, 5e-4, 5e-3),
+       true},
+      {"plate 2 mm in front", plate(0.0, 2e-3, 5e-3), false},
+      {"plate 0.5 mm in front, 1 m to the side", plate(1.0, 5e-4, 5e-3), false},
+      {"plate 0.5 mm behind", plate(0.0, -5e-4, 5e-3), false},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.what);
+    const ObstacleDepthMap map = RenderObstacleDepth(camera, {c.mesh});
+    EXPECT_EQ(map.blocked, c.blocked);
+    const float centre = map.near_depth[static_cast<std::size_t>(15 * 40 + 20)];
+    if (c.blocked) {
+      EXPECT_EQ(*std::max_element(map.near_depth.begin(), map.near_depth.end()), 0.0F);
+    } else if (c.mesh.vertices[0].z() > 1e-3 && c.mesh.vertices[0].x() < 0) {
+      EXPECT_NEAR(centre, 2e-3, 1e-6);
+    } else {
+      EXPECT_EQ(centre, kNone);
+    }
+  }
+}
+
 /// Square [-0.5, 0.5]^2 in the camera's x-y, on the plane z = z0 + slope * x.
 TriangleMesh Square(const CameraModel& camera, double z0, double slope) {
   TriangleMesh mesh;

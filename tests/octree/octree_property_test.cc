@@ -1168,3 +1168,33 @@ TEST(OctreeCoarseFirstTest, NodesThatFindTheCappedListFullStillTakeTheChanges) {
 
 }  // namespace
 }  // namespace hg::octree
+
+namespace hg::octree {
+namespace {
+
+// A plate 0.5 mm in front of the only camera's centre (closer than the 1 mm
+// near plane its depth map is rendered from) hides the whole cell: the empty
+// mask it sees certifies nothing free. At 2 mm the plate is rendered and hides
+// the cell as well.
+TEST(OctreeObstacleTest, APlateInsideTheNearPlaneHidesEverything) {
+  const common::Box3 bounds{{0, 0, 0}, {2, 2, 2}};
+  const std::vector<geometry::CameraModel> cameras = {
+      scene::LookAtCamera({1.0, 1.0, 6.0}, {1.0, 1.0, 0.0}, 64, 64, 100.0)};
+  for (const double d : {5e-4, 2e-3}) {
+    SCOPED_TRACE(d);
+    geometry::TriangleMesh plate;  // Across the optical axis, d in front of the centre.
+    const double h = 10 * d;
+    plate.vertices = {
+        {1 - h, 1 - h, 6 - d}, {1 + h, 1 - h, 6 - d}, {1 + h, 1 + h, 6 - d}, {1 - h, 1 + h, 6 - d}};
+    plate.triangles = {{0, 1, 2}, {0, 2, 3}};
+    Octree tree({bounds, 5, 1, 0}, testing::MakeViews(cameras, {plate}));
+    Quadtrees qt(cameras);
+    qt.Build(testing::RenderMasks(cameras, {}));
+    tree.Update(qt.ptrs);
+    EXPECT_EQ(tree.StateAt({1.0, 1.0, 1.0}), PointState::kOccluded);
+    EXPECT_EQ(tree.StateAt({0.1, 1.9, 0.1}), PointState::kOccluded);
+  }
+}
+
+}  // namespace
+}  // namespace hg::octree
