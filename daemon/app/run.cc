@@ -243,9 +243,9 @@ int RunPipeline(const Config& config, double duration_s) {
   log::Info("sim/replay time 0 is {} ns (CLOCK_REALTIME)", sim_clock.epoch_ns);
   bool ready = false;
   std::uint64_t blackbox_seen = 0;
-  bool blackbox_was_ok = false;  // Starting cameras make the first cycles degraded.
-  std::optional<std::chrono::steady_clock::time_point> last_degraded_dump;
-  bool degraded_dump_due = false;
+  pipeline::DegradedDumpTrigger degraded_trigger(
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+          std::chrono::duration<double>(config.blackbox.seconds)));
   auto next_report = std::chrono::steady_clock::now() + std::chrono::seconds(1);
   while (!g_stop.load()) {
     heartbeats.Beat(main_heartbeat);
@@ -260,21 +260,13 @@ int RunPipeline(const Config& config, double duration_s) {
       }
     }
     if (black_box && config.blackbox.on_degraded) {
-      // Dumps on the turn from ok to degraded, at most one per ring length
-      // (a flapping status would otherwise write the same frames again and
-      // again); a turn during another dump is dumped after it.
       if (const auto s = pipeline.Latest(); s && s->sequence != blackbox_seen) {
         blackbox_seen = s->sequence;
-        if (s->health.degraded && blackbox_was_ok &&
-            (!last_degraded_dump ||
-             now - *last_degraded_dump >= std::chrono::duration<double>(config.blackbox.seconds))) {
-          degraded_dump_due = true;
-        }
-        blackbox_was_ok = !s->health.degraded;
+        degraded_trigger.Observe(s->health.degraded);
       }
-      if (degraded_dump_due && !black_box->busy() && black_box->RequestDump("degraded")) {
-        degraded_dump_due = false;
-        last_degraded_dump = now;
+      if (degraded_trigger.ShouldDump(now, black_box->busy()) &&
+          black_box->RequestDump("degraded")) {
+        degraded_trigger.Dumped(now);
       }
     }
     if (!ready) {

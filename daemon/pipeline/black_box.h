@@ -5,6 +5,7 @@
 /// when the status turns degraded or on request (SIGUSR1).
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -76,6 +77,42 @@ struct BlackBoxDump {
 /// oldest frames are lost; the PNG encoding and the writing, seconds of CPU,
 /// run afterwards on a second thread at nice 19, below the pipeline.
 ///
+/// When to dump on the status turning from ok to degraded: at most once per
+/// `min_interval` (the ring's length: a flapping status would otherwise write
+/// the same frames again and again). A turn sooner than that after the last
+/// dump, or while another dump runs, is dumped once it may be; the ring, as
+/// long as that wait, still holds the moment of the turn. So one brief turn
+/// (a missed deadline) cannot hide a camera lost a moment later.
+/// Thread-compatible: one thread (the daemon's main loop) calls it.
+class DegradedDumpTrigger {
+ public:
+  using Clock = std::chrono::steady_clock;
+  explicit DegradedDumpTrigger(Clock::duration min_interval) : min_interval_(min_interval) {}
+
+  /// A new cycle's status. The first cycles (cameras starting) are not turns.
+  void Observe(bool degraded) {
+    if (degraded && was_ok_) due_ = true;
+    was_ok_ = !degraded;
+  }
+  /// Whether a dump is due now and allowed (none running, the interval past).
+  [[nodiscard]] bool ShouldDump(Clock::time_point now, bool busy) const {
+    return due_ && !busy && (!dumped_ || now - last_ >= min_interval_);
+  }
+  /// The dump ShouldDump() asked for was started at `now`.
+  void Dumped(Clock::time_point now) {
+    due_ = false;
+    dumped_ = true;
+    last_ = now;
+  }
+
+ private:
+  Clock::duration min_interval_;
+  bool was_ok_ = false;
+  bool due_ = false;
+  bool dumped_ = false;
+  Clock::time_point last_{};
+};
+
 /// Thread safety: Push(camera, ...) from one thread per camera (its capture
 /// thread); RequestDump(), busy(), LastDump(), WaitIdle() and the counters
 /// from any thread; DumpTo() from one thread at a time (tests, tools).

@@ -305,3 +305,41 @@ TEST_F(BlackBoxTest, RequestedDumpGoesToATimeNamedFolder) {
 
 }  // namespace
 }  // namespace hg::pipeline
+
+namespace hg::pipeline {
+namespace {
+
+// The turn from ok to degraded dumps, at most once per interval; a turn
+// inside the interval (here: a missed deadline, then a camera lost 0.4 s
+// later) is dumped when the interval is over, not forgotten while the status
+// stays degraded. Cycles before the first ok one (cameras starting) are no turn.
+TEST(DegradedDumpTriggerTest, ATurnInsideTheIntervalIsDumpedAfterIt) {
+  using Clock = DegradedDumpTrigger::Clock;
+  using std::chrono::milliseconds;
+  const Clock::time_point t0{};
+  DegradedDumpTrigger trigger(milliseconds(1000));
+  trigger.Observe(true);  // Starting.
+  EXPECT_FALSE(trigger.ShouldDump(t0, false));
+  trigger.Observe(false);
+  trigger.Observe(true);  // The deadline miss.
+  EXPECT_FALSE(trigger.ShouldDump(t0, /*busy=*/true)) << "one dump at a time";
+  ASSERT_TRUE(trigger.ShouldDump(t0 + milliseconds(20), false));
+  trigger.Dumped(t0 + milliseconds(20));
+  EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(40), false));
+  trigger.Observe(false);
+  trigger.Observe(true);  // The camera lost, and it stays lost.
+  for (int ms = 420; ms < 1020; ms += 20) {
+    trigger.Observe(true);
+    EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(ms), false)) << ms;
+  }
+  trigger.Observe(true);
+  ASSERT_TRUE(trigger.ShouldDump(t0 + milliseconds(1020), false));
+  trigger.Dumped(t0 + milliseconds(1020));
+  for (int ms = 1040; ms < 5000; ms += 20) {
+    trigger.Observe(true);  // Degraded throughout: no new turn, no new dump.
+    EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(ms), false)) << ms;
+  }
+}
+
+}  // namespace
+}  // namespace hg::pipeline
