@@ -707,27 +707,35 @@ bool AravisSource::Next(Frame* frame, milliseconds timeout) {
       last_good_ = now;
     }
     const Clock::time_point lost_at = last_good_ + options_.frame_timeout;
+    ArvBuffer* buffer = nullptr;
     if (now >= lost_at) {
-      // The watchdog: hand the camera to the control thread for release and
-      // reopening. The lock only orders the wake-up; it is taken once per loss.
-      connected_.store(false);
-      returned_.store(active_, std::memory_order_release);
-      active_ = nullptr;
-      {
-        std::lock_guard<std::mutex> lock(control_mutex_);
-        control_wake_.notify_all();
+      // A caller that was itself held up past the timeout first takes the
+      // buffers that arrived meanwhile (each stamped with its arrival, so an
+      // old one ages as it should downstream).
+      buffer = arv_stream_try_pop_buffer(active_->stream);
+      if (buffer == nullptr) {
+        // The watchdog: hand the camera to the control thread for release and
+        // reopening. The lock only orders the wake-up; it is taken once per loss.
+        connected_.store(false);
+        returned_.store(active_, std::memory_order_release);
+        active_ = nullptr;
+        {
+          std::lock_guard<std::mutex> lock(control_mutex_);
+          control_wake_.notify_all();
+        }
+        return false;
       }
-      return false;
+    } else {
+      if (popped && now >= give_up) return false;
+      const Clock::time_point wake = std::min({give_up, lost_at, now + kPollSlice});
+      const auto wait_us =
+          std::chrono::duration_cast<std::chrono::microseconds>(wake - now).count();
+      popped = true;
+      buffer = wait_us > 0
+                   ? arv_stream_timeout_pop_buffer(active_->stream, static_cast<guint64>(wait_us))
+                   : arv_stream_try_pop_buffer(active_->stream);
+      if (buffer == nullptr) continue;
     }
-    if (popped && now >= give_up) return false;
-
-    const Clock::time_point wake = std::min({give_up, lost_at, now + kPollSlice});
-    const auto wait_us = std::chrono::duration_cast<std::chrono::microseconds>(wake - now).count();
-    popped = true;
-    ArvBuffer* buffer =
-        wait_us > 0 ? arv_stream_timeout_pop_buffer(active_->stream, static_cast<guint64>(wait_us))
-                    : arv_stream_try_pop_buffer(active_->stream);
-    if (buffer == nullptr) continue;
 
     // The newest complete buffer wins; older ones waiting behind a slow
     // reader would only add latency.

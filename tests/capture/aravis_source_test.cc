@@ -216,6 +216,28 @@ TEST(AravisSourceTest, DeliversKnownMonoImagesWithIncreasingStamps) {
   EXPECT_EQ(stats.reconnects, 0u);
 }
 
+// The thread that calls Next() held up for longer than the frame timeout (a
+// loaded machine) finds the frames that arrived meanwhile: the camera is not
+// lost, and no reconnection follows.
+TEST(AravisSourceTest, ACallerHeldUpPastTheTimeoutTakesTheFramesThatArrived) {
+  InProcessCamera camera("HGLATE");
+  ASSERT_TRUE(camera.running()) << "cannot serve a fake camera on 127.0.0.1:3956";
+  AravisOptions options = FakeOptions("HGLATE", Pixel::kMono8);
+  options.frame_timeout = milliseconds(400);
+  AravisSource source(options);
+  Frame frame;
+  ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(15000)));
+  const std::int64_t first = frame.stamp_ns;
+  for (int late = 0; late < 3; ++late) {
+    std::this_thread::sleep_for(milliseconds(900));
+    ASSERT_TRUE(source.Next(&frame, milliseconds(0))) << "held up " << late;
+    EXPECT_GT(frame.stamp_ns, first);
+  }
+  const AravisSource::Stats stats = source.stats();
+  EXPECT_TRUE(stats.connected);
+  EXPECT_EQ(stats.reconnects, 0u);
+}
+
 TEST(AravisSourceTest, ConvertsRgbAndEveryBayerPattern) {
   InProcessCamera camera("HGCOLOUR");
   ASSERT_TRUE(camera.running());
