@@ -1,7 +1,9 @@
 #include "octree/knowledge_filter.h"
 
 #include <numeric>
+#include <optional>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 namespace hg::octree {
@@ -16,8 +18,10 @@ PointState KnowledgeFilterResult::StateAt(const Octree& tree, const Eigen::Vecto
 KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volume_m3) {
   const common::Box3& bounds = tree.config().bounds;
   std::vector<Cell> cells;
+  std::vector<Cell> occluded;
   tree.ForEachLeaf([&](const Cell& c, LeafState s) {
     if (s == LeafState::kOccupied) cells.push_back(c);
+    if (s == LeafState::kOccluded) occluded.push_back(c);
   });
   std::unordered_map<std::uint64_t, int> index;
   index.reserve(cells.size() * 2);
@@ -32,13 +36,16 @@ KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volum
     while (parent[i] != i) i = parent[i] = parent[parent[i]];
     return i;
   };
-  // Probe the 26 neighbour directions just outside each leaf, at the middle of
+  // Probe the 26 neighbour directions just outside a leaf, at the middle of
   // the face, edge or corner. A touching leaf of the same or a coarser level
   // always holds that probe (octree cells are aligned), and a finer touching
-  // leaf finds this one from its own side, so every touching pair is joined.
+  // leaf finds this one from its own side: occupied leaves probe to join
+  // occupied neighbours and to find occluded ones or the bounds' faces, and
+  // occluded leaves probe to find the occupied leaves they touch, so that a
+  // coarse occupied leaf beside finer occluded ones is anchored too.
   const double eps = 1e-6 * (bounds.max - bounds.min).minCoeff() / (1 << tree.config().depth);
-  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
-    const common::Box3 box = CellBox(bounds, cells[i]);
+  auto for_each_neighbour = [&](const Cell& cell, auto&& visit) {
+    const common::Box3 box = CellBox(bounds, cell);
     const Eigen::Vector3d mid = 0.5 * (box.min + box.max);
     for (int d = 0; d < 27; ++d) {
       const int dx = d % 3 - 1, dy = (d / 3) % 3 - 1, dz = d / 9 - 1;
@@ -49,16 +56,27 @@ KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volum
         if (dir[a] < 0) p[a] = box.min[a] - eps;
         if (dir[a] > 0) p[a] = box.max[a] + eps;
       }
-      const auto leaf = tree.LeafAt(p);
+      visit(tree.LeafAt(p));
+    }
+  };
+  auto occupied_index = [&](const std::optional<std::pair<Cell, LeafState>>& leaf) {
+    if (!leaf || leaf->second != LeafState::kOccupied) return -1;
+    const auto it = index.find(KnowledgeFilterResult::Key(leaf->first));
+    return it == index.end() ? -1 : it->second;
+  };
+  for (int i = 0; i < static_cast<int>(cells.size()); ++i) {
+    for_each_neighbour(cells[i], [&](const auto& leaf) {
       if (!leaf || leaf->second == LeafState::kOccluded) {
         anchored[i] = 1;  // Outside the bounds, or beside space no camera sees.
-        continue;
+        return;
       }
-      if (leaf->second != LeafState::kOccupied) continue;
-      const auto it = index.find(KnowledgeFilterResult::Key(leaf->first));
-      if (it == index.end()) continue;
-      parent[find(i)] = find(it->second);
-    }
+      if (const int j = occupied_index(leaf); j >= 0) parent[find(i)] = find(j);
+    });
+  }
+  for (const Cell& cell : occluded) {
+    for_each_neighbour(cell, [&](const auto& leaf) {
+      if (const int j = occupied_index(leaf); j >= 0) anchored[j] = 1;
+    });
   }
   std::vector<double> volume(cells.size(), 0.0);
   std::vector<char> kept(cells.size(), 0);  // Per component root: anchored somewhere.
