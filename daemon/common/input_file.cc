@@ -53,7 +53,9 @@ bool IsCompleteImage(std::string_view text) {
            std::memcmp(bytes + n - sizeof(kPngEnd), kPngEnd, sizeof(kPngEnd)) == 0;
   }
   if (n >= 2 && bytes[0] == 0xFF && bytes[1] == 0xD8) {
-    return n >= 4 && bytes[n - 2] == 0xFF && bytes[n - 1] == 0xD9;
+    std::size_t end = n;  // Zero padding after the end marker is harmless.
+    while (end > 4 && bytes[end - 1] == 0) --end;
+    return end >= 4 && bytes[end - 2] == 0xFF && bytes[end - 1] == 0xD9;
   }
   if (n >= 2 && bytes[0] == 'P' && (bytes[1] == '5' || bytes[1] == '6')) {
     // Header: magic, width, height, maxval, each after whitespace or

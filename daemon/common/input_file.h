@@ -19,7 +19,8 @@ namespace hg::common {
                                         std::ios::openmode mode = std::ios::in);
 
 /// Whether an encoded image of a format that decoders accept half-read is all
-/// there: a PNG ends with its IEND chunk, a JPEG with its end-of-image marker,
+/// there: a PNG ends with its IEND chunk, a JPEG with its end-of-image marker
+/// (zero padding after it allowed),
 /// a binary PGM/PPM holds every pixel its header announces. Other formats are
 /// left to their decoder (true). A file cut short (disk full while recording,
 /// a copy interrupted) is to be refused rather than decoded: libjpeg fills the
