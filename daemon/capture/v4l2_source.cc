@@ -12,6 +12,7 @@
 #include <ctime>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <system_error>
 #include <thread>
 #include <utility>
@@ -21,6 +22,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/config_error.h"
+#include "common/input_file.h"
 
 namespace hg::capture {
 namespace {
@@ -516,17 +518,17 @@ bool V4l2Source::Convert(const v4l2_buffer& buffer, Frame* frame) {
   if (pixel_format_ == V4L2_PIX_FMT_MJPEG) {
     // A transfer cut short leaves a JPEG without its end marker (UVC pads the
     // payload with zeros), which libjpeg would decode into a half grey image.
-    if (size < 4 || data[0] != 0xFF || data[1] != 0xD8) return corrupt();
-    std::size_t end = size;
-    while (end > 4 && data[end - 1] == 0) --end;
-    if (data[end - 2] != 0xFF || data[end - 1] != 0xD9) return corrupt();
+    if (size < 4 || data[0] != 0xFF || data[1] != 0xD8 ||
+        !common::IsCompleteImage(std::string_view(reinterpret_cast<const char*>(data), size))) {
+      return corrupt();
+    }
     // imdecode reports a failure only by an empty result: into a Mat that
     // held the previous frame it would fail silently and leave that frame
     // there, to be delivered again with a new stamp. So each frame decodes
     // into a fresh Mat (one image-sized allocation, beside libjpeg's own).
     cv::Mat bgr;
     try {
-      const cv::Mat bytes(1, static_cast<int>(end), CV_8UC1, const_cast<std::uint8_t*>(data));
+      const cv::Mat bytes(1, static_cast<int>(size), CV_8UC1, const_cast<std::uint8_t*>(data));
       bgr = cv::imdecode(bytes, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
     } catch (const cv::Exception&) {
       return corrupt();
