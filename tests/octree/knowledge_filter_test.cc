@@ -204,3 +204,72 @@ TEST(KnowledgeFilterTest, BlobsAtAFaceOrBesideOccludedSpaceAreKept) {
 
 }  // namespace
 }  // namespace hg::octree
+
+namespace hg::octree {
+namespace {
+
+// A coarse occupied leaf touched by a finer occluded leaf away from the
+// middles of its faces, edges and corners is anchored. The probes that an
+// occupied leaf sends out find any touching leaf of its own level or coarser,
+// but a finer occluded leaf can touch it where no probe lands: only that
+// occluded leaf's own probes find the occupied one.
+//
+// Seeded scene (3 cameras, 3 objects, 6 obstacles), depth 6, boundary
+// coarsening 2: from level 4 on, a box cut only by geometry (an obstacle's
+// depth, the edge of a view) in some cameras is not split further. The blob
+// is such a level-5 leaf that camera 0 sees full of foreground (occupied),
+// and beside it lies a level-6 one that camera 0 cannot see (occluded).
+// The test checks that layout first: it is what the regression needs.
+TEST(KnowledgeFilterTest, CoarseBlobBesideAFinerOccludedLeafIsKept) {
+  testing::RandomSceneOptions options;
+  options.num_cameras = 3;
+  options.num_objects = 3;
+  options.num_obstacles = 6;
+  const testing::RandomScene s = testing::MakeRandomScene(1120, options);
+  const auto masks = testing::RenderMasks(s.cameras, s.objects);
+  std::vector<silhouette::SilhouetteQuadtree> trees;
+  std::vector<const silhouette::SilhouetteQuadtree*> ptrs;
+  for (const auto& c : s.cameras) trees.emplace_back(c.width, c.height);
+  for (std::size_t i = 0; i < s.cameras.size(); ++i) {
+    trees[i].Build(masks[i].View(), 127);
+    ptrs.push_back(&trees[i]);
+  }
+  OctreeConfig config{s.bounds, 6, 1};
+  config.boundary_coarsening = 2;
+  Octree tree(config, testing::MakeViews(s.cameras, s.obstacles));
+  tree.Update(ptrs);
+
+  // The blob: the occupied level-5 leaf [0.6875, 0.75] x [0.375, 0.4375] x
+  // [0.4375, 0.5], away from the faces of the bounds. Of the leaves touching
+  // it, all are free but one: the occluded level-6 leaf [0.75, 0.78125] x
+  // [0.375, 0.40625] x [0.5, 0.53125], which touches the blob's edge x = 0.75,
+  // z = 0.5 along its lower half only.
+  const Cell blob{5, 11, 6, 7};
+  const Cell occluded{6, 24, 12, 16};
+  const common::Box3 box = CellBox(s.bounds, blob);
+  const Eigen::Vector3d centre = 0.5 * (box.min + box.max);
+  ASSERT_EQ(tree.LeafAt(centre), std::make_pair(blob, LeafState::kOccupied));
+  std::vector<std::string> touching;  // Non-free leaves touching the blob.
+  tree.ForEachLeaf([&](const Cell& c, LeafState state) {
+    const common::Box3 b = CellBox(s.bounds, c);
+    const bool touches =
+        (b.min.array() <= box.max.array()).all() && (b.max.array() >= box.min.array()).all();
+    if (touches && !(c == blob) && state != LeafState::kFree) {
+      touching.push_back(Describe(c) + (state == LeafState::kOccluded ? " occluded" : " occupied"));
+    }
+  });
+  ASSERT_EQ(touching, std::vector<std::string>{Describe(occluded) + " occluded"});
+  // The blob's probe at the middle of that edge lands in a free leaf.
+  const double eps = 1e-9;
+  const auto at_edge_middle = tree.LeafAt({box.max.x() + eps, centre.y(), box.max.z() + eps});
+  ASSERT_TRUE(at_edge_middle.has_value());
+  ASSERT_EQ(at_edge_middle->second, LeafState::kFree);
+
+  // Any volume limit drops a blob in the open; this one is anchored.
+  const KnowledgeFilterResult r = FilterSmallComponents(tree, 1e9);
+  EXPECT_FALSE(r.IsDropped(blob));
+  EXPECT_EQ(r.StateAt(tree, centre), PointState::kOccupied) << ToString(r.StateAt(tree, centre));
+}
+
+}  // namespace
+}  // namespace hg::octree
