@@ -87,6 +87,7 @@ struct alignas(64) Octree::WorkerScratch {
   std::vector<std::uint32_t> free_blocks;
   std::vector<std::uint32_t> capped;
   std::int64_t unsplit = 0;  // Nodes left pending for want of free blocks.
+  int root = 0;              // The root this worker is in.
 };
 
 /// One update pass: the per-worker traversal of roots.
@@ -115,6 +116,7 @@ class Octree::Updater {
   using Counters = WorkerScratch;
 
   void UpdateRoot(int r, Counters& counters) {
+    counters.root = r;
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
@@ -600,6 +602,9 @@ class Octree::Updater {
         n.flags = kPending;
         n.stamp = 0;
         ++k.unsplit;
+        // The root is exact down to this level only (one worker per root).
+        std::uint8_t& unsplit_level = tree_.unsplit_level_[k.root];
+        unsplit_level = std::min(unsplit_level, static_cast<std::uint8_t>(cell.level));
         return true;
       }
       child_force = true;
@@ -816,6 +821,7 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   std::atomic<std::int64_t> spent{0};
   UpdateStats stats;
   root_level_.fill(0);
+  unsplit_level_.fill(std::numeric_limits<std::uint8_t>::max());
   int aborted_level = 0;  // The pass that was aborted, if one was.
   auto run_pass = [&](Updater::Pass pass, int split_limit) {
     Updater shared(*this, masks, control, pass, split_limit, spent);
@@ -874,6 +880,14 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
       ++done;
     }
     root_start_ = (root_start_ + done) % kNumRoots;
+  }
+  // A node the full store could not split is an occupied leaf at its level:
+  // its root, and the tree, are exact down to that level only.
+  for (int r = 0; r < kNumRoots; ++r) {
+    if (unsplit_level_[r] < root_level_[r]) {
+      root_level_[r] = unsplit_level_[r];
+      stats.refined_level = std::min<int>(stats.refined_level, unsplit_level_[r]);
+    }
   }
   for (int w = 0; w < pool_->num_threads(); ++w) {
     const WorkerScratch& k = scratch_[w];

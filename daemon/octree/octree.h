@@ -105,7 +105,8 @@ struct UpdateStats {
   /// The tree is exact down to this level everywhere (a node there that
   /// needs finer work reads as occupied): config.depth when the update
   /// completed; with coarse first, the level of its last completed pass; 0
-  /// when an abort left whole regions unvisited.
+  /// when an abort left whole regions unvisited; at most the coarsest level
+  /// of a node the full store could not split (nodes_unsplit).
   int refined_level = 0;
   std::int64_t nodes_visited = 0;      ///< Nodes whose footprints were computed.
   std::int64_t verdicts_computed = 0;  ///< Camera verdicts evaluated (quadtree queries).
@@ -174,7 +175,8 @@ class Octree {
   /// Per root, the level the last update left it exact down to, as
   /// UpdateStats::refined_level is for the whole tree: config.depth where the
   /// root was completed, the level of the last pass that completed it with
-  /// coarse first, 0 where an abort left it unfinished. An aborted pass
+  /// coarse first, 0 where an abort left it unfinished, at most the level of
+  /// a node in it the full store could not split. An aborted pass
   /// completes some roots; the next update's passes start where the last
   /// aborted one stopped, so that successive aborted updates refine the
   /// whole cell in turn. Roots go in columns (z fastest), the columns in
@@ -309,6 +311,8 @@ class Octree {
   std::vector<std::uint32_t> discontinuity_;  // Per camera: last update that was not continuous.
   std::vector<std::uint64_t> version_ring_;   // [update % kVersionRing][camera].
   std::array<std::uint8_t, kNumRoots> root_level_{};  // RootLevels().
+  // Per root, the coarsest level of a node this update could not split.
+  std::array<std::uint8_t, kNumRoots> unsplit_level_{};
   int root_start_ = 0;  // Position in the pass order where the passes begin.
 };
 

@@ -440,7 +440,9 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
   }
   snapshot->sequence = ++sequence_;
   snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
-  snapshot->complete = !stats.aborted;
+  // Complete: refined to the finest cell everywhere, which a full node store
+  // (nodes left unsplit, occupied) also prevents.
+  snapshot->complete = !stats.aborted && stats.nodes_unsplit == 0;
   snapshot->refined_cell_m = RefinedCellSize(options_.bounds, stats.refined_level);
   static_assert(kRootsPerAxis * kRootsPerAxis * kRootsPerAxis == octree::Octree::kNumRoots);
   const std::span<const std::uint8_t> root_levels = tree_->RootLevels();

@@ -772,6 +772,13 @@ TEST(OctreeNodeStoreTest, AFullStoreLeavesNodesOccupiedAndRecovers) {
     const UpdateStats stats = tree.Update(qt.ptrs);
     unsplit += stats.nodes_unsplit;
     EXPECT_LE(tree.NumNodes(), small.max_nodes + 8) << "frame " << frame;
+    // Exact only down to the coarsest unsplit node: no root, and not the
+    // tree, may claim the finest level then.
+    if (stats.nodes_unsplit > 0) {
+      EXPECT_LT(stats.refined_level, small.depth) << "frame " << frame;
+      const auto levels = tree.RootLevels();
+      EXPECT_LT(*std::min_element(levels.begin(), levels.end()), small.depth) << "frame " << frame;
+    }
     Octree exact(large, views);
     Quadtrees fresh(scene.cameras);
     fresh.Build(masks);

@@ -602,6 +602,12 @@ TEST(PipelineTest, AFullNodeStoreIsConservativeAndDegraded) {
   EXPECT_FALSE(full->health.degraded);
   EXPECT_GT(small->health.unsplit_nodes, 0);
   EXPECT_TRUE(small->health.degraded);
+  // Unsplit nodes are occupied leaves coarser than asked: the cycle is not
+  // complete, nor refined to the finest cell (which tracking would trust).
+  EXPECT_TRUE(full->complete);
+  EXPECT_FALSE(small->complete);
+  EXPECT_GT(small->refined_cell_m, full->refined_cell_m);
+  EXPECT_LT(*std::min_element(small->root_levels.begin(), small->root_levels.end()), 7);
   EXPECT_EQ(PeoplePointsFree(*scene, *small), 0);
   EXPECT_EQ(PeoplePointsFree(*scene, *full), 0);
   EXPECT_GT(OccupancySnapshot::Cells(small->occupied), OccupancySnapshot::Cells(full->occupied));
