@@ -50,6 +50,13 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
       runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
     }
     views.emplace_back(c.model.Pinhole(), obstacles);
+    if (const geometry::ObstacleDepthMap& depth = views.back().depth_map();
+        !depth.near_depth.empty()) {  // Empty without obstacles.
+      runtime->obstacle_tiles = runtime->dilator.TilesWhere([&depth](int u, int v) {
+        return depth.near_depth[static_cast<std::size_t>(v) * depth.width + u] !=
+               geometry::ObstacleDepthMap::kNone;
+      });
+    }
     if (views.back().depth_map().blocked) {
       log::Warn(
           "{}: an obstacle reaches within 1 mm in front of the camera centre (inside the lens): "
@@ -407,7 +414,8 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
           if (tiles == 0) {
             c.quadtree.Build(c.current->mask.View(), 127);
           } else {
-            c.quadtree.BuildFromTiles(c.dilator.DilateTiles(c.current->mask.View(), radius));
+            c.quadtree.BuildFromTiles(
+                c.dilator.DilateTiles(c.current->mask.View(), radius, c.obstacle_tiles));
           }
           if (c.fresh) {
             health.silhouette_ms =

@@ -178,6 +178,10 @@ class Pipeline {
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
     silhouette::TileDilator dilator;
+    // Tiles showing an obstacle, behind which someone may be hidden: a frame
+    // older than the newest is dilated from these too, since whoever they hid
+    // may have stepped out since.
+    std::vector<std::uint8_t> obstacle_tiles;
     geometry::CameraModel pinhole;
     const Slot* current = nullptr;  // Newest frame taken; valid until the next take.
     bool fresh = false;             // `current` not built into the quadtree yet.

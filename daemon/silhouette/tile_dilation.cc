@@ -171,8 +171,10 @@ void TileDilator::Apply(const common::ImageViewU8& mask, int radius_px, common::
 }
 
 std::span<const std::uint8_t> TileDilator::DilateTiles(const common::ImageViewU8& mask,
-                                                       int radius_px) {
+                                                       int radius_px,
+                                                       std::span<const std::uint8_t> seeds) {
   HG_CHECK(radius_px > 0 && mask.width == width_ && mask.height == height_);
+  HG_CHECK(seeds.empty() || seeds.size() == tiles_.size());
   // Tile map: a tile is foreground when any of its pixels is (> 127, i.e. its
   // top bit is set: eight pixels are tested with one word).
   std::fill(tiles_.begin(), tiles_.end(), 0);
@@ -189,9 +191,19 @@ std::span<const std::uint8_t> TileDilator::DilateTiles(const common::ImageViewU8
       tile_row[u / kTile] |= static_cast<std::uint8_t>(in[u] > 127);
     }
   }
+  for (std::size_t t = 0; t < seeds.size(); ++t)
+    tiles_[t] |= static_cast<std::uint8_t>(seeds[t] != 0);
   // Pixels within radius_px of each other lie in tiles at most
   // radius_px / 8 + 1 apart. Separable box dilation by prefix counts.
+  // Beyond the image's edges nothing was seen: as foreground, so that what
+  // was just outside the image grows in too (each pass adds the tiles
+  // holding a pixel within radius_px of the edges it crosses).
   const int r = radius_px / kTile + 1;
+  auto near_edge = [radius_px](int tile, int size) {
+    const int first = tile * kTile;
+    const int last = std::min(first + kTile, size) - 1;
+    return first + 1 <= radius_px || size - last <= radius_px;
+  };
   for (int ty = 0; ty < tiles_y_; ++ty) {
     const std::uint8_t* row = tiles_.data() + static_cast<std::size_t>(ty) * tiles_x_;
     std::uint8_t* dst = scratch_.data() + static_cast<std::size_t>(ty) * tiles_x_;
@@ -200,7 +212,7 @@ std::span<const std::uint8_t> TileDilator::DilateTiles(const common::ImageViewU8
     for (int tx = 0; tx < tiles_x_; ++tx) {
       const int lo = std::max(0, tx - r);
       const int hi = std::min(tiles_x_, tx + r + 1);
-      dst[tx] = static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0);
+      dst[tx] = static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0 || near_edge(tx, width_));
     }
   }
   for (int tx = 0; tx < tiles_x_; ++tx) {
@@ -212,7 +224,7 @@ std::span<const std::uint8_t> TileDilator::DilateTiles(const common::ImageViewU8
       const int lo = std::max(0, ty - r);
       const int hi = std::min(tiles_y_, ty + r + 1);
       tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx] =
-          static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0);
+          static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0 || near_edge(ty, height_));
     }
   }
   return tiles_;

@@ -49,15 +49,33 @@ class TileDilator {
   TileDilator(int width, int height);
 
   /// Writes the dilated mask (255 foreground, 0 background; input foreground
-  /// iff > 127) to *out. radius_px <= 0 copies the mask as it is.
+  /// iff > 127) to *out. radius_px <= 0 copies the mask as it is. With
+  /// radius_px > 0, what lies beyond the image's edges counts as foreground
+  /// (nothing was seen there, and an object just outside may have moved in):
+  /// pixels within the radius of an edge are foreground too.
   void Apply(const common::ImageViewU8& mask, int radius_px, common::ImageU8* out);
 
   /// The same dilation as a tile map, without writing pixels: one byte per
   /// tile, row-major, (width + 7) / 8 by (height + 7) / 8, non-zero where the
   /// dilated mask is foreground (SilhouetteQuadtree::BuildFromTiles() reads
-  /// it). Precondition: radius_px > 0. Valid until the next call.
+  /// it). `seeds` (empty, or one byte per tile): tiles taken as foreground
+  /// before dilating, such as those where an obstacle may hide someone.
+  /// Precondition: radius_px > 0. Valid until the next call.
   [[nodiscard]] std::span<const std::uint8_t> DilateTiles(const common::ImageViewU8& mask,
-                                                          int radius_px);
+                                                          int radius_px,
+                                                          std::span<const std::uint8_t> seeds = {});
+
+  /// Tiles (as DilateTiles' map) holding a pixel where `pixel_set` is true.
+  template <class PixelSet>
+  [[nodiscard]] std::vector<std::uint8_t> TilesWhere(PixelSet pixel_set) const {
+    std::vector<std::uint8_t> tiles(tiles_.size(), 0);
+    for (int v = 0; v < height_; ++v) {
+      for (int u = 0; u < width_; ++u) {
+        if (pixel_set(u, v)) tiles[static_cast<std::size_t>(v / kTile) * tiles_x_ + u / kTile] = 1;
+      }
+    }
+    return tiles;
+  }
 
  private:
   int width_, height_, tiles_x_, tiles_y_;

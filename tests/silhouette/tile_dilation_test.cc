@@ -92,6 +92,9 @@ TEST(DilateSquare, EqualsOpenCvsIteratedSquareDilation) {
   }
 }
 
+// With a radius, what lies beyond the image's edges counts as foreground
+// (an object just outside the view may have moved in), so the distance is
+// to the nearest foreground pixel or the nearest pixel outside the image.
 TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
   std::mt19937_64 rng(7);
   for (int trial = 0; trial < testing::SoakSeeds(12); ++trial) {
@@ -104,7 +107,9 @@ TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
       dilator.Apply(mask.View(), radius, &out);
       for (int v = 0; v < h; ++v) {
         for (int u = 0; u < w; ++u) {
-          const int d = dist[static_cast<std::size_t>(v) * w + u];
+          const int outside = std::min({u + 1, v + 1, w - u, h - v});
+          const int d =
+              std::min(dist[static_cast<std::size_t>(v) * w + u], radius == 0 ? 1 << 20 : outside);
           const bool fg = out.At(u, v) == 255;
           if (d <= radius) {
             ASSERT_TRUE(fg) << "trial " << trial << " radius " << radius << " at " << u << "," << v
@@ -119,6 +124,29 @@ TEST(TileDilator, CoversTheRadiusAndOvershootsByLessThanTwoTiles) {
         }
       }
     }
+  }
+}
+
+// Seed tiles (where an obstacle may hide someone) grow like foreground: the
+// map with seeds equals the map of the mask with the seed tiles filled in.
+TEST(TileDilator, SeedTilesGrowLikeForeground) {
+  std::mt19937_64 rng(5);
+  const int w = 203, h = 117;
+  TileDilator dilator(w, h);
+  const common::ImageU8 mask = RandomBlobs(w, h, 2, rng);
+  common::ImageU8 filled = mask;
+  for (int v = 60; v < 80; ++v) {
+    for (int u = 100; u < 130; ++u) filled.At(u, v) = 255;
+  }
+  const std::vector<std::uint8_t> seeds =
+      dilator.TilesWhere([](int u, int v) { return u >= 100 && u < 130 && v >= 60 && v < 80; });
+  for (const int radius : {1, 9, 20}) {
+    const auto with_fill = dilator.DilateTiles(filled.View(), radius);
+    const std::vector<std::uint8_t> expected(with_fill.begin(), with_fill.end());
+    const auto with_seeds = dilator.DilateTiles(mask.View(), radius, seeds);
+    EXPECT_EQ(std::vector<std::uint8_t>(with_seeds.begin(), with_seeds.end()), expected) << radius;
+    const auto without = dilator.DilateTiles(mask.View(), radius);
+    EXPECT_NE(std::vector<std::uint8_t>(without.begin(), without.end()), expected) << radius;
   }
 }
 
