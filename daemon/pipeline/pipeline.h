@@ -178,9 +178,9 @@ class Pipeline {
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
     silhouette::TileDilator dilator;
-    // Tiles showing an obstacle, behind which someone may be hidden: a frame
-    // older than the newest is dilated from these too, since whoever they hid
-    // may have stepped out since.
+    // Tiles at the edges of what the obstacles hide, where someone hidden
+    // comes into view: a frame older than the newest is dilated from these
+    // too, since whoever the obstacles hid may have stepped out since.
     std::vector<std::uint8_t> obstacle_tiles;
     geometry::CameraModel pinhole;
     const Slot* current = nullptr;  // Newest frame taken; valid until the next take.
