@@ -367,22 +367,6 @@ ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
   return map;
 }
 
-bool EmergenceEdge(const ObstacleDepthMap& map, int u, int v, float gap_m) {
-  const auto at = [&map](int x, int y) {
-    return map.near_depth[static_cast<std::size_t>(y) * map.width + x];
-  };
-  const float here = at(u, v);
-  if (here == ObstacleDepthMap::kNone) return false;
-  for (int dy = -1; dy <= 1; ++dy) {
-    for (int dx = -1; dx <= 1; ++dx) {
-      const int x = u + dx, y = v + dy;
-      if (x < 0 || y < 0 || x >= map.width || y >= map.height) continue;
-      if (at(x, y) > here + gap_m) return true;  // kNone is +infinity.
-    }
-  }
-  return false;
-}
-
 DepthPyramid::DepthPyramid(const std::vector<float>& values, int width, int height, Kind kind)
     : kind_(kind) {
   HG_CHECK(width > 0 && height > 0);

@@ -39,14 +39,6 @@ struct ObstacleDepthMap {
 [[nodiscard]] ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
                                                    const std::vector<TriangleMesh>& meshes);
 
-/// Whether someone the obstacles hide from this camera can come into its view
-/// next to pixel (u, v): the pixel shows an obstacle, and a neighbour (of the
-/// eight, inside the image) shows none, or shows one farther by more than
-/// `gap_m` (a gap someone may stand in). Whoever is hidden cannot pass
-/// through an obstacle: they come into view across such an edge of what the
-/// obstacles hide, or across the image's edges.
-[[nodiscard]] bool EmergenceEdge(const ObstacleDepthMap& map, int u, int v, float gap_m = 0.05F);
-
 /// Min- or max-pyramid over a per-pixel float map, answering rectangle
 /// predicates exactly (descending only where the answer is still open).
 /// Immutable after construction; thread-safe for concurrent queries.

@@ -6,74 +6,24 @@
 
 namespace hg::octree {
 
-namespace {
-
-// Sliding minimum over [i - radius, i + radius] of `n` values `stride` apart
-// starting at `data`, in place (a deque of candidate indices).
-void SlidingMin(float* data, int n, std::ptrdiff_t stride, int radius, std::vector<float>* in,
-                std::vector<int>* queue) {
-  in->resize(static_cast<std::size_t>(n));
-  for (int i = 0; i < n; ++i) (*in)[i] = data[i * stride];
-  queue->resize(static_cast<std::size_t>(n));
-  int head = 0, tail = 0;
-  int next = 0;  // Next index to enter the window.
-  for (int i = 0; i < n; ++i) {
-    for (; next < n && next <= i + radius; ++next) {
-      while (tail > head && (*in)[(*queue)[tail - 1]] >= (*in)[next]) --tail;
-      (*queue)[tail++] = next;
-    }
-    while ((*queue)[head] < i - radius) ++head;
-    data[i * stride] = (*in)[(*queue)[head]];
-  }
-}
-
-}  // namespace
-
 CameraView::CameraView(const geometry::CameraModel& pinhole,
-                       const std::vector<geometry::TriangleMesh>& obstacles, LagMargin lag)
-    : projector_(pinhole.ProjectionMatrix()),
-      width_(pinhole.width),
-      height_(pinhole.height),
-      lag_(lag) {
+                       const std::vector<geometry::TriangleMesh>& obstacles)
+    : projector_(pinhole.ProjectionMatrix()), width_(pinhole.width), height_(pinhole.height) {
   HG_CHECK(!pinhole.HasDistortion());
   HG_CHECK(pinhole.K(2, 2) == 1.0 && pinhole.K(2, 0) == 0.0 && pinhole.K(2, 1) == 0.0);
-  HG_CHECK(lag.radius_px >= 0 && lag.depth_m >= 0.0);
   bool any_triangle = false;
   for (const auto& m : obstacles) any_triangle = any_triangle || !m.triangles.empty();
   if (!any_triangle) return;
   depth_map_ = geometry::RenderObstacleDepth(pinhole, obstacles);
-  // The depths below which this camera may certify space free: the obstacles'
-  // near depths, and with a lag margin the depth of each emergence edge less
-  // the margin, over the pixels within its radius.
-  std::vector<float> certify = depth_map_.near_depth;
-  if (lag.radius_px > 0) {
-    std::vector<float> edges(certify.size(), geometry::ObstacleDepthMap::kNone);
-    for (int v = 0; v < height_; ++v) {
-      for (int u = 0; u < width_; ++u) {
-        if (geometry::EmergenceEdge(depth_map_, u, v)) {
-          const std::size_t i = static_cast<std::size_t>(v) * width_ + u;
-          edges[i] = std::max(0.0F, static_cast<float>(depth_map_.near_depth[i] - lag.depth_m));
-        }
-      }
-    }
-    std::vector<float> scratch;
-    std::vector<int> queue;
-    for (int v = 0; v < height_; ++v) {
-      SlidingMin(edges.data() + static_cast<std::size_t>(v) * width_, width_, 1, lag.radius_px,
-                 &scratch, &queue);
-    }
-    for (int u = 0; u < width_; ++u) {
-      SlidingMin(edges.data() + u, height_, width_, lag.radius_px, &scratch, &queue);
-    }
-    for (std::size_t i = 0; i < certify.size(); ++i) certify[i] = std::min(certify[i], edges[i]);
-  }
-  near_min_ = geometry::DepthPyramid(certify, width_, height_, geometry::DepthPyramid::Kind::kMin);
+  near_min_ = geometry::DepthPyramid(depth_map_.near_depth, width_, height_,
+                                     geometry::DepthPyramid::Kind::kMin);
   centre_max_ = geometry::DepthPyramid(depth_map_.centre_depth, width_, height_,
                                        geometry::DepthPyramid::Kind::kMax);
   obstacle_rect_ = {width_, height_, -1, -1};
   for (int v = 0; v < height_; ++v) {
     for (int u = 0; u < width_; ++u) {
-      if (certify[static_cast<std::size_t>(v) * width_ + u] != geometry::ObstacleDepthMap::kNone) {
+      if (depth_map_.near_depth[static_cast<std::size_t>(v) * width_ + u] !=
+          geometry::ObstacleDepthMap::kNone) {
         obstacle_rect_ = {std::min(obstacle_rect_.u0, u), std::min(obstacle_rect_.v0, v),
                           std::max(obstacle_rect_.u1, u), std::max(obstacle_rect_.v1, v)};
       }

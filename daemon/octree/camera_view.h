@@ -13,27 +13,13 @@
 
 namespace hg::octree {
 
-/// How far someone the obstacles hide may have moved since a camera's frame
-/// (a frame older than the newest: capture skew): `depth_m` in space, at most
-/// `radius_px` in the image.
-struct LagMargin {
-  int radius_px = 0;
-  double depth_m = 0.0;
-};
-
 /// Static data of one camera for the octree: pinhole projection and the
 /// obstacle depth pyramids. Immutable after construction; thread-safe.
 class CameraView {
  public:
-  /// `pinhole` must have no distortion (masks are undistorted before the
-  /// octree). With a `lag` margin, the camera certifies no space free where
-  /// someone its obstacles hid may have come into view within the margin:
-  /// within lag.radius_px of an edge of what the obstacles hide
-  /// (geometry::EmergenceEdge), nothing farther than that edge's depth less
-  /// lag.depth_m. A frame that lags by no more than the margin then needs no
-  /// growth from those edges (the silhouette's own growth still does).
+  /// `pinhole` must have no distortion (masks are undistorted before the octree).
   CameraView(const geometry::CameraModel& pinhole,
-             const std::vector<geometry::TriangleMesh>& obstacles, LagMargin lag = {});
+             const std::vector<geometry::TriangleMesh>& obstacles);
 
   [[nodiscard]] const geometry::BoxProjector& projector() const { return projector_; }
   [[nodiscard]] int width() const { return width_; }
@@ -43,9 +29,7 @@ class CameraView {
   [[nodiscard]] const geometry::PixelRect& obstacle_rect() const { return obstacle_rect_; }
   [[nodiscard]] const geometry::DepthPyramid& near_min() const { return near_min_; }
   [[nodiscard]] const geometry::DepthPyramid& centre_max() const { return centre_max_; }
-  /// The obstacles as rendered (near_min() holds the lag margin's bounds too).
   [[nodiscard]] const geometry::ObstacleDepthMap& depth_map() const { return depth_map_; }
-  [[nodiscard]] const LagMargin& lag_margin() const { return lag_; }
 
  private:
   geometry::BoxProjector projector_;
@@ -55,7 +39,6 @@ class CameraView {
   geometry::ObstacleDepthMap depth_map_;
   geometry::DepthPyramid near_min_;
   geometry::DepthPyramid centre_max_;
-  LagMargin lag_;
 };
 
 /// One camera's verdict on a box (ARCHITECTURE.md, reconstruction rules).

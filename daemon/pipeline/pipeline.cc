@@ -21,6 +21,30 @@
 namespace hg::pipeline {
 namespace {
 
+// Whether someone hidden by the obstacles from this camera can come into its
+// view next to pixel (u, v): the pixel shows an obstacle, and a neighbour
+// shows none, or shows something farther away by more than kHidingGapM (a
+// gap someone may stand in). Whoever is hidden cannot pass through an
+// obstacle, so they come into view across such an edge of what the
+// obstacles hide (or across the image's edges, which the lag dilation
+// covers anyway).
+bool EmergenceEdge(const geometry::ObstacleDepthMap& depth, int u, int v) {
+  constexpr float kHidingGapM = 0.05F;
+  const auto at = [&depth](int x, int y) {
+    return depth.near_depth[static_cast<std::size_t>(y) * depth.width + x];
+  };
+  const float here = at(u, v);
+  if (here == geometry::ObstacleDepthMap::kNone) return false;
+  for (int dy = -1; dy <= 1; ++dy) {
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int x = u + dx, y = v + dy;
+      if (x < 0 || y < 0 || x >= depth.width || y >= depth.height) continue;
+      if (at(x, y) > here + kHidingGapM) return true;  // kNone is +infinity.
+    }
+  }
+  return false;
+}
+
 using SteadyClock = std::chrono::steady_clock;
 
 std::int64_t RealtimeNs() {
@@ -49,20 +73,11 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
     if (c.model.HasDistortion()) {
       runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
     }
-    // Frames up to a period older than the newest (free-running cameras) are
-    // covered for what their obstacles hid by the view's lag margin, which
-    // leaves the space in front of those obstacles to be certified; a frame
-    // lagging more is grown from the obstacles' emergence edges instead.
-    octree::LagMargin lag;
-    const double lag_m = options_.max_speed_mps / options_.rate_hz;
-    const int lag_px =
-        silhouette::CoveringRadiusPx(c.model.Pinhole(), lag_m, options_.min_camera_distance_m);
-    if (lag_px > 0) lag = {lag_px, lag_m};
-    views.emplace_back(c.model.Pinhole(), obstacles, lag);
+    views.emplace_back(c.model.Pinhole(), obstacles);
     if (const geometry::ObstacleDepthMap& depth = views.back().depth_map();
         !depth.near_depth.empty()) {  // Empty without obstacles.
       runtime->obstacle_tiles = runtime->dilator.TilesWhere(
-          [&depth](int u, int v) { return geometry::EmergenceEdge(depth, u, v); });
+          [&depth](int u, int v) { return EmergenceEdge(depth, u, v); });
     }
     if (views.back().depth_map().blocked) {
       log::Warn(
@@ -421,12 +436,8 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
           if (tiles == 0) {
             c.quadtree.Build(c.current->mask.View(), 127);
           } else {
-            const octree::LagMargin& margin = tree_->camera(static_cast<int>(i)).lag_margin();
-            const bool covered =
-                margin.radius_px > 0 && options_.max_speed_mps * lag_s <= margin.depth_m;
-            c.quadtree.BuildFromTiles(c.dilator.DilateTiles(
-                c.current->mask.View(), radius,
-                covered ? std::span<const std::uint8_t>{} : c.obstacle_tiles));
+            c.quadtree.BuildFromTiles(
+                c.dilator.DilateTiles(c.current->mask.View(), radius, c.obstacle_tiles));
           }
           if (c.fresh) {
             health.silhouette_ms =

@@ -958,7 +958,6 @@ TEST(PipelineLagTest, WhatALaggingCameraCouldNotSeeIsNotCertifiedFree) {
     std::vector<geometry::TriangleMesh> obstacles;
     scene::Shape then, now;
     int depth;
-    int lag_ms;  // 2 m/s over it: the distance from `then` to `now`.
   };
   std::vector<Case> cases;
   {
@@ -978,25 +977,14 @@ TEST(PipelineLagTest, WhatALaggingCameraCouldNotSeeIsNotCertifiedFree) {
                      {},
                      scene::Sphere{{x0, 1, 1}, 0.06},
                      scene::Sphere{{x0 + 0.1, 1, 1}, 0.06},
-                     7,
-                     50});
+                     7});
   }
   cases.push_back({"stepping out from behind a post",
                    scene::LookAtCamera({1, -2, 1}, {1, 1, 1}, 640, 480, 1200),
                    {geometry::TriangleMesh::Box({0.9, 0.3, 0.6}, {1.0, 0.35, 1.4})},
                    scene::Sphere{{0.93, 1.2, 1.0}, 0.02},
                    scene::Sphere{{1.03, 1.2, 1.0}, 0.02},
-                   8,
-                   50});
-  // Lagging less than a period (33 ms at 30 Hz): the camera view's lag margin
-  // covers what the post hid, instead of the dilation.
-  cases.push_back({"stepping out from behind a post, within a period",
-                   scene::LookAtCamera({1, -2, 1}, {1, 1, 1}, 640, 480, 1200),
-                   {geometry::TriangleMesh::Box({0.9, 0.3, 0.6}, {1.0, 0.35, 1.4})},
-                   scene::Sphere{{0.96, 1.2, 1.0}, 0.02},
-                   scene::Sphere{{1.0, 1.2, 1.0}, 0.02},
-                   8,
-                   20});
+                   8});
   for (Case& c : cases) {
     SCOPED_TRACE(c.what);
     c.a.name = "A";
@@ -1026,7 +1014,7 @@ TEST(PipelineLagTest, WhatALaggingCameraCouldNotSeeIsNotCertifiedFree) {
     cameras[0].model = c.a;
     cameras[1].model = b;
     Pipeline pipeline(options, std::move(cameras), c.obstacles, nullptr);
-    const std::int64_t t0 = 1'000'000'000'000, t1 = t0 + c.lag_ms * 1'000'000LL;
+    const std::int64_t t0 = 1'000'000'000'000, t1 = t0 + 50'000'000;
     capture::Frame fa, fb;
     fa.kind = fb.kind = capture::FrameKind::kMask;
     fa.grey = common::ImageU8(c.a.width, c.a.height, 0);  // Nothing of the ball.
@@ -1037,7 +1025,7 @@ TEST(PipelineLagTest, WhatALaggingCameraCouldNotSeeIsNotCertifiedFree) {
     pipeline.Feed(1, fb);
     const auto s = pipeline.Step(t1 + 1'000'000);
     ASSERT_EQ(s->health.cameras[0].state, CameraState::kOk);
-    EXPECT_NEAR(s->health.skew_ms, c.lag_ms, 1e-6);
+    EXPECT_NEAR(s->health.skew_ms, 50.0, 1e-6);
     const auto [free, inside] = FreeCellsInside(*s, c.now);
     EXPECT_GT(inside, 50);
     EXPECT_EQ(free, 0) << "of " << inside << " cells inside the ball";
