@@ -21,30 +21,6 @@
 namespace hg::pipeline {
 namespace {
 
-// Whether someone hidden by the obstacles from this camera can come into its
-// view next to pixel (u, v): the pixel shows an obstacle, and a neighbour
-// shows none, or shows something farther away by more than kHidingGapM (a
-// gap someone may stand in). Whoever is hidden cannot pass through an
-// obstacle, so they come into view across such an edge of what the
-// obstacles hide (or across the image's edges, which the lag dilation
-// covers anyway).
-bool EmergenceEdge(const geometry::ObstacleDepthMap& depth, int u, int v) {
-  constexpr float kHidingGapM = 0.05F;
-  const auto at = [&depth](int x, int y) {
-    return depth.near_depth[static_cast<std::size_t>(y) * depth.width + x];
-  };
-  const float here = at(u, v);
-  if (here == geometry::ObstacleDepthMap::kNone) return false;
-  for (int dy = -1; dy <= 1; ++dy) {
-    for (int dx = -1; dx <= 1; ++dx) {
-      const int x = u + dx, y = v + dy;
-      if (x < 0 || y < 0 || x >= depth.width || y >= depth.height) continue;
-      if (at(x, y) > here + kHidingGapM) return true;  // kNone is +infinity.
-    }
-  }
-  return false;
-}
-
 using SteadyClock = std::chrono::steady_clock;
 
 std::int64_t RealtimeNs() {
@@ -76,8 +52,10 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
     views.emplace_back(c.model.Pinhole(), obstacles);
     if (const geometry::ObstacleDepthMap& depth = views.back().depth_map();
         !depth.near_depth.empty()) {  // Empty without obstacles.
-      runtime->obstacle_tiles = runtime->dilator.TilesWhere(
-          [&depth](int u, int v) { return EmergenceEdge(depth, u, v); });
+      runtime->obstacle_tiles = runtime->dilator.TilesWhere([&depth](int u, int v) {
+        return depth.near_depth[static_cast<std::size_t>(v) * depth.width + u] !=
+               geometry::ObstacleDepthMap::kNone;
+      });
     }
     if (views.back().depth_map().blocked) {
       log::Warn(

@@ -178,9 +178,11 @@ class Pipeline {
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
     silhouette::TileDilator dilator;
-    // Tiles at the edges of what the obstacles hide, where someone hidden
-    // comes into view: a frame older than the newest is dilated from these
-    // too, since whoever the obstacles hid may have stepped out since.
+    // Tiles showing an obstacle, behind which someone may be hidden: a frame
+    // older than the newest is dilated from these too, since whoever they hid
+    // may have stepped out since. (All of them: growing only from the edges
+    // of what the obstacles hide would rest on a guess of the narrowest gap
+    // between obstacles someone could be hidden in, and measured no cheaper.)
     std::vector<std::uint8_t> obstacle_tiles;
     geometry::CameraModel pinhole;
     const Slot* current = nullptr;  // Newest frame taken; valid until the next take.
