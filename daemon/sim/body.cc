@@ -153,9 +153,10 @@ struct Pose {
   double arm_support = 0.0;  ///< 1: the hands bear weight (crawling).
 };
 
-Pose Blend(const Pose& a, const Pose& b, double s, double s_heading) {
+/// `turn`: b's heading less a's, unwrapped (b.heading may move during a blend).
+Pose Blend(const Pose& a, const Pose& b, double s, double s_heading, double turn) {
   Pose r;
-  r.heading = WrapAngle(a.heading + s_heading * WrapAngle(b.heading - a.heading));
+  r.heading = WrapAngle(a.heading + s_heading * turn);
   r.pelvis_forward = Lerp(a.pelvis_forward, b.pelvis_forward, s);
   r.torso_pitch = Lerp(a.torso_pitch, b.torso_pitch, s);
   r.head_pitch = Lerp(a.head_pitch, b.head_pitch, s);
@@ -607,6 +608,12 @@ struct Phase {
   double move_s = 0.0;  ///< kWalk, kCrawl: time spent moving.
   double blend_s = kBlendS;
   double heading_blend_s = kBlendS;
+  /// kWalk, kCrawl: the target's heading at the start, and the turn from
+  /// `from` to it. The turn to the moving target is this turn plus how far
+  /// the target has turned since, so it stays continuous when the target
+  /// passes the heading opposite `from` during the blend.
+  double target_heading0 = 0.0;
+  double turn0 = 0.0;
 };
 
 struct Sample {
@@ -633,8 +640,11 @@ Sample EvaluatePhase(const Dims& d, const Phase& phase, double t) {
   out.loc = phase.loc0;
   const Pose target =
       phase.kind == PhaseKind::kHold ? phase.target : MovingTarget(d, phase, tau, &out.loc);
+  const double turn = phase.kind == PhaseKind::kHold
+                          ? WrapAngle(target.heading - phase.from.heading)
+                          : phase.turn0 + WrapAngle(target.heading - phase.target_heading0);
   out.pose = Blend(phase.from, target, SmoothStep(tau / phase.blend_s),
-                   SmoothStep(tau / phase.heading_blend_s));
+                   SmoothStep(tau / phase.heading_blend_s), turn);
   return out;
 }
 
@@ -722,7 +732,10 @@ Sample EvaluateTimeline(const Person& person, const Dims& d, double t_s, ActionK
         const PathSample first = PathAt(start.loc, act.path_W, 0.0, current);
         phase.heading_blend_s = HeadingBlendTime(current, first.heading);
         Vector3d unused_loc;
-        phase.blend_s = BlendTime(start.pose, MovingTarget(d, phase, 0.0, &unused_loc));
+        const Pose target0 = MovingTarget(d, phase, 0.0, &unused_loc);
+        phase.blend_s = BlendTime(start.pose, target0);
+        phase.target_heading0 = target0.heading;
+        phase.turn0 = WrapAngle(target0.heading - start.pose.heading);
         const double stop_s = act.start_s + phase.move_s;
         // A walker who stops settles into standing, unless the next action
         // begins right away.
@@ -739,6 +752,21 @@ Sample EvaluateTimeline(const Person& person, const Dims& d, double t_s, ActionK
 }
 
 }  // namespace
+
+double FastestPartSpeed(const Person& person, double t0_s, double t1_s, double step_s) {
+  double fastest = 0.0;
+  BodyState before = EvaluatePerson(person, t0_s);
+  for (int k = 1; t0_s + k * step_s <= t1_s; ++k) {
+    const BodyState after = EvaluatePerson(person, t0_s + k * step_s);
+    for (int i = 0; i < kNumBodyParts; ++i) {
+      const double moved = std::max((after.parts[i].a_W - before.parts[i].a_W).norm(),
+                                    (after.parts[i].b_W - before.parts[i].b_W).norm());
+      fastest = std::max(fastest, moved / step_s);
+    }
+    before = after;
+  }
+  return fastest;
+}
 
 const char* BodyPartName(BodyPart part) {
   switch (part) {

@@ -104,6 +104,15 @@ struct BodyState {
 /// The axis-aligned bounding box of every part (the body box; centre_W is its centre).
 [[nodiscard]] common::Box3 BodyBox(const BodyState& state);
 
+/// The fastest any point of the person moves (m/s) over [t0_s, t1_s],
+/// measured per `step_s`: a point inside a capsule at t + dt lies within the
+/// larger of its ends' displacements of the capsule at t (the segment moves
+/// by no more anywhere, and the radius stays), so the largest end
+/// displacement per step bounds every point's. What a pipeline's
+/// max_speed_mps must cover for these people.
+[[nodiscard]] double FastestPartSpeed(const Person& person, double t0_s, double t1_s,
+                                      double step_s = 0.002);
+
 /// Fills centre_W and ellipsoid_half_axes_m from the parts.
 void ComputeBoundingEllipsoid(BodyState* state);
 

@@ -764,6 +764,23 @@ TEST(ShippedScenesTest, AllLoadAndEveryCameraSeesTheCellCentre) {
   }
 }
 
+// People move as people do: no part faster than 6 m/s (a walker's swinging
+// foot reaches three times the walking speed), and nothing jumps. A heading
+// blended the short way round while the path turned through the opposite
+// heading once flung a walker's limbs at 400 m/s; an arm turned straight
+// from hanging to reaching overhead whipped the hand at 9 m/s.
+TEST(ShippedScenesTest, NoPartOfAPersonMovesFasterThanSixMetresPerSecond) {
+  for (const fs::path& path : ShippedScenes()) {
+    SCOPED_TRACE(path.string());
+    const Scene scene = LoadScene(path.string());
+    for (const Person& person : scene.people) {
+      double end_s = 0.0;
+      for (const Action& a : person.actions) end_s = std::max(end_s, a.start_s + a.duration_s);
+      EXPECT_LE(FastestPartSpeed(person, 0.0, end_s + 1.0), 6.0) << person.name;
+    }
+  }
+}
+
 TEST(ShippedScenesTest, PeopleStayInTheCellAndClearOfObjects) {
   for (const fs::path& path : ShippedScenes()) {
     SCOPED_TRACE(path.string());
