@@ -188,15 +188,27 @@ const Field<OctreeSettings> kOctreeFields[] = {
 const Field<MotionConfig> kMotionFields[] = {
     {.key = "max_speed_mps",
      .member = &MotionConfig::max_speed_mps,
-     .meaning = "Fastest a person moves (m/s). Cameras capture at different instants; each older "
-                "frame's silhouette grows by the distance covered until the newest frame, whose "
-                "capture time stamps the occupancy. 0 assumes synchronised cameras.",
+     .meaning = "Fastest any part of a person moves (m/s): not the walking speed (ISO 13855's "
+                "2 m/s) but that of the swinging feet (up to three times the walking speed) and "
+                "of quick hands. Cameras capture at different instants; a camera whose frame is "
+                "older (or newer) than the instant that stamps the occupancy certifies a box free "
+                "only where it saw background, in its view and in front of the obstacles, "
+                "everywhere within the distance covered meanwhile. A part faster than this may "
+                "reach out of the occupancy by the excess times the skew. 0 assumes synchronised "
+                "cameras.",
      .limits = {0, 20}},
     {.key = "min_camera_distance_m",
      .member = &MotionConfig::min_camera_distance_m,
-     .meaning = "People are assumed to stay at least this far from every camera centre; nearer, "
-                "the skew compensation does not hold.",
+     .meaning = "Ignored; accepted so that older configs still load. The skew compensation "
+                "used to assume people this far from every camera; it now holds at any "
+                "distance.",
      .limits = {0.05, 100}},
+    {.key = "stamp_at_median",
+     .member = &MotionConfig::stamp_at_median,
+     .meaning = "Stamp the occupancy with the median of the cameras' capture times instead of "
+                "the newest. The cameras that captured at that instant then need no growth, only "
+                "the others do: less occupied space when most cameras capture together and a few "
+                "drift, at the cost of up to half the skew in the occupancy's age (latency)."},
 };
 
 const Field<TimingConfig> kTimingFields[] = {

@@ -33,11 +33,13 @@ struct OctreeSettings {
   int max_nodes = 0;  ///< Octree nodes reserved at start (0: from the depth, at most 8 Mi).
 };
 
-/// How far people can move: the capture-skew compensation grows each older
-/// frame's silhouette by the distance a person covers until the newest frame.
+/// How far people can move: the capture-skew compensation grows the boxes an
+/// older frame certifies free by the distance a person covers until the
+/// newest frame.
 struct MotionConfig {
-  double max_speed_mps = 2.0;          ///< Fastest a person moves (ISO 13855 walking: 1.6 to 2.0).
-  double min_camera_distance_m = 1.0;  ///< People stay at least this far from every camera.
+  double max_speed_mps = 5.0;          ///< Fastest any part of a person moves (feet, hands).
+  double min_camera_distance_m = 1.0;  ///< Ignored (older configs carry it).
+  bool stamp_at_median = false;        ///< pipeline::PipelineOptions::stamp_at_median.
 };
 
 /// Fusion timing.

@@ -39,7 +39,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.knowledge_filter_m3 = config.octree.knowledge_filter_m3;
   options.publish_depth = config.octree.publish_depth;
   options.max_speed_mps = config.motion.max_speed_mps;
-  options.min_camera_distance_m = config.motion.min_camera_distance_m;
+  options.stamp_at_median = config.motion.stamp_at_median;
   const BackgroundConfig& b = config.background;
   options.background.learn_frames = b.learn_frames;
   options.background.min_threshold = b.threshold;

@@ -45,7 +45,9 @@ class CameraView {
 enum class Verdict : std::uint8_t {
   kFree = 0,    ///< Footprint inside the image, all background, box in front of obstacles.
   kHidden = 1,  ///< The camera sees no part of the box (behind it, outside, behind obstacles).
-  kFull = 2,    ///< Every footprint pixel is foreground or outside the image.
+  /// Every footprint pixel is foreground or outside the image (in the octree,
+  /// with a margin, also: every sub-box's grown footprint holds foreground).
+  kFull = 2,
   kMixed = 3,   ///< Anything else: a smaller box may get another verdict.
 };
 

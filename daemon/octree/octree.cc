@@ -75,11 +75,14 @@ struct alignas(64) Octree::WorkerScratch {
   geometry::Footprint footprints[Octree::kMaxDepth + 1][Octree::kMaxCameras];
   // Per tree level: the 3x3x3 corner grid of the eight children of the node
   // being split there, projected per camera when a child first needs it.
+  // A camera with a margin m gets a 4x4x4 grid instead: per axis the lower
+  // face of each child less m and its upper face plus m (x0 - m, x1 + m,
+  // x1 - m, x2 + m), so that its corners are those of the grown children.
   struct ChildGrid {
     double xs[3], ys[3], zs[3];
     std::uint32_t projected = 0;                         // Cameras whose u, v, z are filled in.
-    alignas(16) double uv[Octree::kMaxCameras][2 * 27];  // u, v interleaved.
-    double z[Octree::kMaxCameras][27];
+    alignas(16) double uv[Octree::kMaxCameras][2 * 64];  // u, v interleaved.
+    double z[Octree::kMaxCameras][64];
   };
   ChildGrid grids[Octree::kMaxDepth + 1];
   // Free blocks of eight nodes, and the nodes the coarse passes stopped at
@@ -145,8 +148,12 @@ class Octree::Updater {
     return stop;
   }
 
+  // Footprint of the box grown by camera c's margin.
   geometry::Footprint FootprintOf(int c, const common::Box3& box) const {
-    return tree_.cameras_[c].projector().Project(box.min, box.max);
+    const double m = tree_.margin_[c];
+    if (m == 0.0) return tree_.cameras_[c].projector().Project(box.min, box.max);
+    const Eigen::Vector3d grow = Eigen::Vector3d::Constant(m);
+    return tree_.cameras_[c].projector().Project(box.min - grow, box.max + grow);
   }
 
   // Starts the corner grid of the children of the node with `box`.
@@ -161,7 +168,16 @@ class Octree::Updater {
 
   void Project(WorkerScratch::ChildGrid& g, int c) const {
     if (((g.projected >> c) & 1u) != 0) return;
-    tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.uv[c], g.z[c]);
+    const double m = tree_.margin_[c];
+    if (m == 0.0) {
+      tree_.cameras_[c].projector().ProjectGrid<3>(g.xs, g.ys, g.zs, g.uv[c], g.z[c]);
+    } else {
+      // The same subtractions and additions as FootprintOf() of a child.
+      const double xs[4] = {g.xs[0] - m, g.xs[1] + m, g.xs[1] - m, g.xs[2] + m};
+      const double ys[4] = {g.ys[0] - m, g.ys[1] + m, g.ys[1] - m, g.ys[2] + m};
+      const double zs[4] = {g.zs[0] - m, g.zs[1] + m, g.zs[1] - m, g.zs[2] + m};
+      tree_.cameras_[c].projector().ProjectGrid<4>(xs, ys, zs, g.uv[c], g.z[c]);
+    }
     g.projected |= 1u << c;
   }
 
@@ -170,14 +186,49 @@ class Octree::Updater {
   // every child's footprint, so the camera frees none of them, and, as the
   // node lies in front of the camera and of every obstacle it overlaps
   // (`clear`), each child's verdict in it is full or mixed in the silhouette.
+  // With a margin, the centre lies inside every grown child, at least the
+  // margin (kMinMargin or more) from its faces: its pixel, projected on its
+  // own, is inside every grown child's footprint.
   bool CentreBlocks(WorkerScratch::ChildGrid& g, int c, std::uint32_t clear) const {
     const silhouette::SilhouetteQuadtree* mask = masks_[c];
     if (mask == nullptr || ((clear >> c) & 1u) == 0) return false;
     Project(g, c);
-    if (*std::min_element(g.z[c], g.z[c] + 27) <= geometry::kMinFrontDepth) return false;
-    const int u = geometry::PixelOf(g.uv[c][2 * 13]);
-    const int v = geometry::PixelOf(g.uv[c][2 * 13 + 1]);
+    const bool grown = tree_.margin_[c] != 0.0;
+    const int points = grown ? 64 : 27;
+    if (*std::min_element(g.z[c], g.z[c] + points) <= geometry::kMinFrontDepth) return false;
+    double cu, cv;
+    if (grown) {
+      const Eigen::Vector3d p =
+          tree_.cameras_[c].projector().P * Eigen::Vector4d(g.xs[1], g.ys[1], g.zs[1], 1.0);
+      cu = p.x() / p.z();
+      cv = p.y() / p.z();
+    } else {
+      cu = g.uv[c][2 * 13];
+      cv = g.uv[c][2 * 13 + 1];
+    }
+    const int u = geometry::PixelOf(cu);
+    const int v = geometry::PixelOf(cv);
     return u >= 0 && v >= 0 && u < mask->width() && v < mask->height() && mask->IsForeground(u, v);
+  }
+
+  // With a margin m, whether camera c frees no box inside `box`, and sees
+  // foreground in every one: each such box grown by m holds the core
+  // [box.max - m, box.min + m] (a box when box is at most 2 m wide), so its
+  // footprint holds the core's, and a foreground pixel there. A mixed verdict
+  // then counts as full: the band of width 2 m that the margin lays along a
+  // silhouette's edge is not split down to the finest cells, none of which
+  // the camera could free.
+  bool CoreSeesForeground(int c, const common::Box3& box) const {
+    const double m = tree_.margin_[c];
+    if (m == 0.0) return false;
+    const Eigen::Vector3d lo = box.max.array() - m;
+    const Eigen::Vector3d hi = box.min.array() + m;
+    if ((lo.array() > hi.array()).any()) return false;
+    const CameraView& view = tree_.cameras_[c];
+    const geometry::Footprint fp = view.projector().Project(lo, hi);
+    if (fp.side != geometry::Footprint::Side::kInFront) return false;
+    const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, view.width(), view.height());
+    return !clip.Empty() && masks_[c]->Query(clip) != silhouette::Cover::kBackground;
   }
 
   // Camera c's relation to the obstacles of the box with footprint fp, from
@@ -196,6 +247,10 @@ class Octree::Updater {
   // to FootprintOf() of the child's own box (BoxProjector::ProjectGrid).
   geometry::Footprint ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i) const {
     Project(g, c);
+    if (tree_.margin_[c] != 0.0) {
+      return geometry::BoxProjector::FromCorners<4>(g.uv[c], g.z[c], 2 * (i & 1),
+                                                    2 * ((i >> 1) & 1), 2 * ((i >> 2) & 1));
+    }
     return geometry::BoxProjector::FromCorners<3>(g.uv[c], g.z[c], i & 1, (i >> 1) & 1,
                                                   (i >> 2) & 1);
   }
@@ -506,7 +561,11 @@ class Octree::Updater {
     for (int c = 0; c < num_cameras && !any_free; ++c) {
       if (((recompute >> c) & 1u) == 0) continue;
       bool geometric = false;
-      const Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], relation(c), &geometric);
+      Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], relation(c), &geometric);
+      if (v == Verdict::kMixed && CoreSeesForeground(c, box)) {
+        v = Verdict::kFull;
+        geometric = false;
+      }
       ++k.verdicts;
       node.verdicts = SetVerdict(node.verdicts, c, v);
       node.valid |= static_cast<std::uint16_t>(1u << c);
@@ -698,6 +757,7 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   last_version_.assign(cameras_.size(), 0);
   last_id_.assign(cameras_.size(), 0);
   discontinuity_.assign(cameras_.size(), 0u);
+  margin_.assign(cameras_.size(), 0.0);
   version_ring_.assign(static_cast<std::size_t>(kVersionRing) * kMaxCameras, 0);
 }
 
@@ -781,9 +841,24 @@ void Octree::BalanceFreeBlocks() {
   }
 }
 
+void Octree::ForgetRelations(std::uint32_t cameras) {
+  std::uint32_t keep = ~0u;
+  for (std::size_t c = 0; c < cameras_.size(); ++c) {
+    if (((cameras >> c) & 1u) != 0) keep &= ~(3u << (2 * c));
+  }
+  for (RootPool& pool : roots_) {
+    for (std::uint32_t& bits : pool.relations) bits &= keep;
+  }
+  // Every node handed out since Reset(), free ones included (harmless).
+  const std::size_t used = 8 * static_cast<std::size_t>(std::min(
+                                   next_block_.load(std::memory_order_relaxed), num_blocks_));
+  for (std::size_t i = 0; i < used; ++i) nodes_.get()[i].obstacle &= keep;
+}
+
 UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const> masks,
-                           const UpdateControl& control) {
+                           const UpdateControl& control, std::span<const double> margins_m) {
   HG_CHECK(masks.size() == cameras_.size());
+  HG_CHECK(margins_m.empty() || margins_m.size() == cameras_.size());
   const auto start = Clock::now();
   // Update numbers are 32 bits: after four billion updates, start over.
   if (update_count_ == std::numeric_limits<std::uint32_t>::max()) {
@@ -811,6 +886,19 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
     last_version_[c] = m == nullptr ? 0 : m->version();
     versions[c] = last_version_[c];
   }
+  // A new margin changes the camera's verdict on every box, and its relation
+  // to the obstacles.
+  std::uint32_t new_margins = 0;
+  for (std::size_t c = 0; c < cameras_.size(); ++c) {
+    const double m = margins_m.empty() ? 0.0 : margins_m[c];
+    HG_CHECK(std::isfinite(m) && (m == 0.0 || m >= kMinMargin));
+    if (m == margin_[c]) continue;
+    margin_[c] = m;
+    discontinuity_[c] = now;
+    forced_now_ |= 1u << c;
+    new_margins |= 1u << c;
+  }
+  if (new_margins != 0) ForgetRelations(new_margins);
 
   for (int w = 0; w < pool_->num_threads(); ++w) {
     WorkerScratch& k = scratch_[w];

@@ -6,6 +6,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -164,8 +165,31 @@ class Octree {
   /// A camera's quadtree may have been built several times since the last
   /// update (its changes since are found); another quadtree (another id())
   /// counts as changed everywhere.
+  ///
+  /// `margins_m` (empty: all 0) holds per camera a distance (m, 0 or at least
+  /// kMinMargin): the camera certifies a box free only when it certifies free
+  /// the box grown by that distance on every side. A camera whose frame is
+  /// older than the moment the update stands for gets the distance a person
+  /// can cover meanwhile: whoever is in the box now was within that distance
+  /// of it then, where the camera saw background, in its view and in front of
+  /// every obstacle. A camera whose margin changes is recomputed everywhere.
   UpdateStats Update(std::span<const silhouette::SilhouetteQuadtree* const> masks,
-                     const UpdateControl& control = {});
+                     const UpdateControl& control = {}, std::span<const double> margins_m = {});
+
+  /// Smallest positive margin (m) Update() takes.
+  static constexpr double kMinMargin = 1e-4;
+  /// Lag margins are rounded up to whole multiples of this (m), so that a
+  /// camera's margin changes seldom (each change recomputes it everywhere).
+  static constexpr double kMarginStep = 0.005;
+  /// `distance_m` (>= 0) rounded up to a whole kMarginStep (0 stays 0).
+  [[nodiscard]] static double RoundMargin(double distance_m) {
+    if (!(distance_m > 0.0)) return 0.0;
+    double m = std::ceil(distance_m / kMarginStep) * kMarginStep;
+    if (m < distance_m) m += kMarginStep;
+    return m;
+  }
+  /// The margins of the last update (m), per camera.
+  [[nodiscard]] std::span<const double> Margins() const { return margin_; }
 
   /// Drops every node: the next update builds from scratch.
   void Reset();
@@ -309,7 +333,11 @@ class Octree {
   std::uint32_t update_count_ = 1;
   std::uint32_t forced_now_ = 0;              // ForcedSince(update_count_ - 1).
   std::vector<std::uint32_t> discontinuity_;  // Per camera: last update that was not continuous.
-  std::vector<std::uint64_t> version_ring_;   // [update % kVersionRing][camera].
+  std::vector<double> margin_;                // Per camera: Update()'s margins_m, as last used.
+  /// Forgets camera set `cameras`' obstacle relations (they were of boxes
+  /// grown by another margin).
+  void ForgetRelations(std::uint32_t cameras);
+  std::vector<std::uint64_t> version_ring_;           // [update % kVersionRing][camera].
   std::array<std::uint8_t, kNumRoots> root_level_{};  // RootLevels().
   // Per root, the coarsest level of a node this update could not split.
   std::array<std::uint8_t, kNumRoots> unsplit_level_{};

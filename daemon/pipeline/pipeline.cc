@@ -16,7 +16,6 @@
 #include "octree/camera_view.h"
 #include "pipeline/black_box.h"
 #include "pipeline/cycle_phase.h"
-#include "silhouette/tile_dilation.h"
 
 namespace hg::pipeline {
 namespace {
@@ -50,13 +49,6 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
       runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
     }
     views.emplace_back(c.model.Pinhole(), obstacles);
-    if (const geometry::ObstacleDepthMap& depth = views.back().depth_map();
-        !depth.near_depth.empty()) {  // Empty without obstacles.
-      runtime->obstacle_tiles = runtime->dilator.TilesWhere([&depth](int u, int v) {
-        return depth.near_depth[static_cast<std::size_t>(v) * depth.width + u] !=
-               geometry::ObstacleDepthMap::kNone;
-      });
-    }
     if (views.back().depth_map().blocked) {
       log::Warn(
           "{}: an obstacle reaches within 1 mm in front of the camera centre (inside the lens): "
@@ -92,6 +84,7 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   }
   if (heartbeats_ != nullptr) fusion_heartbeat_ = heartbeats_->Register("fusion");
   quadtree_ptrs_.resize(cameras_.size(), nullptr);
+  margins_.resize(cameras_.size(), 0.0);
   octree::OctreeConfig tree_config{options_.bounds, options_.depth, options_.octree_threads,
                                    options_.boundary_coarsening};
   tree_config.coarse_first_depth = options_.coarse_first_depth;
@@ -394,40 +387,46 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
     h.resends = transport.resends;
     health.degraded = health.degraded || !live;
   }
-  // Pass 2: quadtrees, each mask dilated for its camera's lag behind the
-  // newest frame. A camera lagging so far that no dilation covers the
-  // distance sees nothing this cycle.
+  // Pass 2: quadtrees, and each camera's margin for its lag behind the
+  // newest frame (PipelineOptions::max_speed_mps).
+  // The instant the snapshot holds for: the newest capture time, or the
+  // median of the live cameras' (PipelineOptions::stamp_at_median).
+  std::int64_t stamp = newest_stamp;
+  std::array<std::int64_t, common::kMaxCameras> stamps{};
+  std::size_t num_live = 0;
+  for (std::size_t i = 0; i < cameras_.size() && options_.stamp_at_median; ++i) {
+    if (quadtree_ptrs_[i] != nullptr) stamps[num_live++] = cameras_[i]->last_stamp_ns;
+  }
+  if (num_live > 0) {
+    const auto middle = stamps.begin() + static_cast<std::ptrdiff_t>((num_live - 1) / 2);
+    std::nth_element(stamps.begin(), middle,
+                     stamps.begin() + static_cast<std::ptrdiff_t>(num_live));
+    stamp = *middle;
+  }
   std::int64_t oldest_used = newest_stamp;
   for (std::size_t i = 0; i < cameras_.size(); ++i) {
     CameraRuntime& c = *cameras_[i];
-    if (quadtree_ptrs_[i] != nullptr) {
-      const double lag_s = (newest_stamp - c.last_stamp_ns) * 1e-9;
-      const int radius = silhouette::CoveringRadiusPx(c.pinhole, options_.max_speed_mps * lag_s,
-                                                      options_.min_camera_distance_m);
-      if (radius < 0) {
-        quadtree_ptrs_[i] = nullptr;
-        health.cameras[i].state = CameraState::kStale;
-        health.degraded = true;
-      } else {
-        const int tiles = radius == 0 ? 0 : radius / silhouette::TileDilator::kTile + 1;
-        if (c.fresh || tiles != c.built_radius_tiles) {
-          if (tiles == 0) {
-            c.quadtree.Build(c.current->mask.View(), 127);
-          } else {
-            c.quadtree.BuildFromTiles(
-                c.dilator.DilateTiles(c.current->mask.View(), radius, c.obstacle_tiles));
-          }
-          if (c.fresh) {
-            health.silhouette_ms =
-                std::max(health.silhouette_ms, (RealtimeNs() - c.last_stamp_ns) * 1e-6);
-          }
-          c.fresh = false;
-          c.built_radius_tiles = tiles;
-        }
-        oldest_used = std::min(oldest_used, c.last_stamp_ns);
-      }
-    }
     const bool live = quadtree_ptrs_[i] != nullptr;
+    if (live) {
+      const double needed =
+          options_.max_speed_mps * static_cast<double>(std::llabs(stamp - c.last_stamp_ns)) * 1e-9;
+      const double margin = octree::Octree::RoundMargin(needed);
+      if (margin >= c.margin_m) {
+        c.margin_m = margin;
+        c.margin_held_until_ns = now_ns + kMarginHoldNs;
+      } else if (now_ns >= c.margin_held_until_ns) {
+        c.margin_m = margin;
+        c.margin_held_until_ns = now_ns + kMarginHoldNs;
+      }
+      if (c.fresh) {
+        c.quadtree.Build(c.current->mask.View(), 127);
+        health.silhouette_ms =
+            std::max(health.silhouette_ms, (RealtimeNs() - c.last_stamp_ns) * 1e-6);
+        c.fresh = false;
+      }
+      oldest_used = std::min(oldest_used, c.last_stamp_ns);
+    }
+    margins_[i] = c.margin_m;  // Kept while the camera is out: no recomputation for it.
     // A camera that comes back was absent from the octree's view: every
     // region is new to it.
     if (live && !c.was_live) c.quadtree.MarkAllChanged();
@@ -435,7 +434,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
   }
   health.skew_ms = (newest_stamp - oldest_used) * 1e-6;
 
-  const octree::UpdateStats stats = tree_->Update(quadtree_ptrs_, control);
+  const octree::UpdateStats stats = tree_->Update(quadtree_ptrs_, control, margins_);
   deadline_misses_ += stats.aborted;
   grid_->Fill(*tree_, snapshot.get());
   health.knowledge_filter = blob_filter_ != nullptr;
@@ -447,7 +446,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
     health.filtered_m3 = static_cast<double>(dropped.dropped_cells) * published_cell_m3_;
   }
   snapshot->sequence = ++sequence_;
-  snapshot->stamp_ns = newest_stamp != 0 ? newest_stamp : now_ns;
+  snapshot->stamp_ns = stamp != 0 ? stamp : now_ns;
   // Complete: refined to the finest cell everywhere, which a full node store
   // (nodes left unsplit, occupied) also prevents.
   snapshot->complete = !stats.aborted && stats.nodes_unsplit == 0;

@@ -59,13 +59,18 @@ struct PipelineOptions {
   /// when any leaf inside it is, so coarser publishing stays conservative.
   int publish_depth = 7;
   /// Capture skew: cameras' newest frames are taken at different instants. The
-  /// snapshot is made valid for the newest capture time T by dilating each
-  /// older mask by the image of a ball of radius max_speed_mps * (T - t_i),
-  /// for people at least min_camera_distance_m from the camera (see
-  /// silhouette::CoveringRadiusPx). 2.0 m/s is the approach speed of
-  /// ISO 13855 for a walking person.
-  double max_speed_mps = 2.0;
-  double min_camera_distance_m = 1.0;
+  /// snapshot is made valid for the newest capture time T: a camera whose
+  /// frame is from t_i < T certifies a box free only when it saw background
+  /// everywhere within max_speed_mps * (T - t_i) of it (octree margins).
+  /// It must bound every part of a person: a walker's swinging foot moves at
+  /// up to three times the walking speed, so ISO 13855's 2.0 m/s approach
+  /// speed is too low for this.
+  double max_speed_mps = 5.0;
+  /// Stamp each snapshot with the median of the cameras' capture times
+  /// instead of the newest: the cameras that captured together (most of a
+  /// rig whose few free-running cameras drift) then need no margin, and only
+  /// the others do, at the cost of up to half the skew in the snapshot's age.
+  bool stamp_at_median = false;
   /// Turns image frames (colour or Mono8 sources) into silhouettes.
   silhouette::BackgroundModelOptions background;
   /// The background model's foreground is grown by this many pixels: a
@@ -111,13 +116,22 @@ struct PipelineCamera {
 ///
 /// Capture skew: a camera's background certifies space free only at its own
 /// capture time t_i. The snapshot is stamped with the newest capture time T of
-/// the cameras used, and each camera's mask is dilated by the distance a
-/// person can move in T - t_i before it enters the octree, so the published
-/// occupancy holds every person as they were at T (for people farther than
-/// min_camera_distance_m from every camera). Consumers add their own reaction
-/// time to the stamp's age, as for any safety sensor.
+/// the cameras used (or their median, stamp_at_median), and each camera
+/// certifies a box free only when it saw background, in its view and in
+/// front of its obstacles, everywhere within the distance a person can move
+/// in |T - t_i| of the box (octree::Octree's
+/// margins: the box grown in 3D, so the growth is as small in the image as
+/// the distance makes it, and an obstacle hides only what lies behind it,
+/// grown by that distance), so the published occupancy holds every person as
+/// they were at T. Margins are rounded up (octree::Octree::RoundMargin) and lowered only
+/// after kMarginHoldNs without need (each change makes the octree recompute
+/// that camera everywhere). Consumers add their own reaction time to the
+/// stamp's age, as for any safety sensor.
 class Pipeline {
  public:
+  /// A margin is lowered only after this long (ns) without a lag needing it.
+  static constexpr std::int64_t kMarginHoldNs = 2'000'000'000;
+
   using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;
 
   /// `heartbeats` (optional, must outlive the pipeline) gets one stage per
@@ -177,17 +191,10 @@ class Pipeline {
     int heartbeat = -1;                                       // Id in heartbeats_, if any.
     // Fusion thread only.
     silhouette::SilhouetteQuadtree quadtree;
-    silhouette::TileDilator dilator;
-    // Tiles showing an obstacle, behind which someone may be hidden: a frame
-    // older than the newest is dilated from these too, since whoever they hid
-    // may have stepped out since. (All of them: growing only from the edges
-    // of what the obstacles hide would rest on a guess of the narrowest gap
-    // between obstacles someone could be hidden in, and measured no cheaper.)
-    std::vector<std::uint8_t> obstacle_tiles;
-    geometry::CameraModel pinhole;
-    const Slot* current = nullptr;  // Newest frame taken; valid until the next take.
-    bool fresh = false;             // `current` not built into the quadtree yet.
-    int built_radius_tiles = 0;     // Dilation the quadtree was built with.
+    const Slot* current = nullptr;          // Newest frame taken; valid until the next take.
+    bool fresh = false;                     // `current` not built into the quadtree yet.
+    double margin_m = 0.0;                  // Lag margin (octree::Octree::Update()).
+    std::int64_t margin_held_until_ns = 0;  // Not lowered before then.
     std::int64_t last_stamp_ns = 0;
     std::chrono::steady_clock::time_point last_ready;  // `ready` of the newest frame taken.
     bool seen = false;                                 // A frame has arrived since start.
@@ -198,9 +205,7 @@ class Pipeline {
         : model(std::move(m)),
           source(std::move(s)),
           timeout_ms(timeout),
-          quadtree(model.width, model.height),
-          dilator(model.width, model.height),
-          pinhole(model.Pinhole()) {}
+          quadtree(model.width, model.height) {}
   };
 
   /// A silhouette worker and the cameras it serves.
@@ -241,6 +246,7 @@ class Pipeline {
   std::vector<SilhouetteWorker> workers_;
   std::unique_ptr<std::atomic<std::uint32_t>[]> signals_;  // One per worker, or one shared.
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
+  std::vector<double> margins_;  // Per camera, for the octree update.
   std::vector<std::shared_ptr<OccupancySnapshot>> pool_;
   std::unique_ptr<PublishedGrid> grid_;      // The snapshots' cells from the tree.
   std::unique_ptr<BlobFilter> blob_filter_;  // With options_.knowledge_filter_m3 > 0.

@@ -137,20 +137,6 @@ void SilhouetteQuadtree::Build(const common::ImageViewU8& mask, std::uint8_t thr
   BuildCoarseLevels();
 }
 
-void SilhouetteQuadtree::BuildFromTiles(std::span<const std::uint8_t> tiles) {
-  HG_CHECK(tiles.size() == words_.size());
-  const bool first = version_ == 0;
-  ++version_;
-  for (int ty = 0; ty < tiles_h_; ++ty) {
-    const std::size_t row = static_cast<std::size_t>(ty) * tiles_w_;
-    for (int tx = 0; tx < tiles_w_; ++tx) {
-      changed_[row + tx] = tiles[row + tx] != 0 ? valid_[row + tx] : 0;
-    }
-    CommitTileRow(ty, first);
-  }
-  BuildCoarseLevels();
-}
-
 void SilhouetteQuadtree::CommitTileRow(int ty, bool first) {
   const std::size_t row = static_cast<std::size_t>(ty) * tiles_w_;
   std::uint64_t* row_words = words_.data() + row;

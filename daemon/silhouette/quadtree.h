@@ -43,12 +43,6 @@ class SilhouetteQuadtree {
   /// pixel changed. Precondition: mask size equals the tree's size.
   void Build(const common::ImageViewU8& mask, std::uint8_t threshold);
 
-  /// Rebuilds from a map of 8x8-pixel tiles, row-major over the tile grid
-  /// ((width + 7) / 8 by (height + 7) / 8): a tile is wholly foreground when
-  /// its byte is non-zero, wholly background otherwise (a mask dilated at tile
-  /// granularity, TileDilator). Same changed flags as Build(); no allocation.
-  void BuildFromTiles(std::span<const std::uint8_t> tiles);
-
   /// Marks every element changed (for a consumer that missed a version).
   void MarkAllChanged();
 

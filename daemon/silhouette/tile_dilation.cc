@@ -1,9 +1,7 @@
 #include "silhouette/tile_dilation.h"
 
 #include <algorithm>
-#include <cmath>
 #include <cstring>
-#include <numbers>
 
 #include <emmintrin.h>
 
@@ -137,117 +135,6 @@ void DilateSquare(common::ImageU8* mask, int radius_px, DilateScratch* scratch,
       }
     });
   }
-}
-
-TileDilator::TileDilator(int width, int height)
-    : width_(width),
-      height_(height),
-      tiles_x_((width + kTile - 1) / kTile),
-      tiles_y_((height + kTile - 1) / kTile),
-      tiles_(static_cast<std::size_t>(tiles_x_) * tiles_y_, 0),
-      scratch_(tiles_.size(), 0),
-      prefix_(static_cast<std::size_t>(std::max(tiles_x_, tiles_y_)) + 1, 0) {}
-
-void TileDilator::Apply(const common::ImageViewU8& mask, int radius_px, common::ImageU8* out) {
-  if (out->width != width_ || out->height != height_) *out = common::ImageU8(width_, height_);
-  if (radius_px <= 0) {
-    for (int v = 0; v < height_; ++v) {
-      const std::uint8_t* in = mask.Row(v);
-      std::uint8_t* o = out->pixels.data() + static_cast<std::size_t>(v) * width_;
-      for (int u = 0; u < width_; ++u) o[u] = in[u] > 127 ? 255 : 0;
-    }
-    return;
-  }
-  const std::span<const std::uint8_t> tiles = DilateTiles(mask, radius_px);
-  for (int v = 0; v < height_; ++v) {
-    const std::uint8_t* tile_row = tiles.data() + static_cast<std::size_t>(v / kTile) * tiles_x_;
-    std::uint8_t* o = out->pixels.data() + static_cast<std::size_t>(v) * width_;
-    for (int tx = 0; tx < tiles_x_; ++tx) {
-      const int u0 = tx * kTile;
-      std::memset(o + u0, tile_row[tx] != 0 ? 255 : 0,
-                  static_cast<std::size_t>(std::min(kTile, width_ - u0)));
-    }
-  }
-}
-
-std::span<const std::uint8_t> TileDilator::DilateTiles(const common::ImageViewU8& mask,
-                                                       int radius_px,
-                                                       std::span<const std::uint8_t> seeds) {
-  HG_CHECK(radius_px > 0 && mask.width == width_ && mask.height == height_);
-  HG_CHECK(seeds.empty() || seeds.size() == tiles_.size());
-  // Tile map: a tile is foreground when any of its pixels is (> 127, i.e. its
-  // top bit is set: eight pixels are tested with one word).
-  std::fill(tiles_.begin(), tiles_.end(), 0);
-  const int full_words = width_ / kTile;
-  for (int v = 0; v < height_; ++v) {
-    const std::uint8_t* in = mask.Row(v);
-    std::uint8_t* tile_row = tiles_.data() + static_cast<std::size_t>(v / kTile) * tiles_x_;
-    for (int w = 0; w < full_words; ++w) {
-      std::uint64_t word;
-      std::memcpy(&word, in + w * kTile, sizeof(word));
-      tile_row[w] |= static_cast<std::uint8_t>((word & 0x8080808080808080ULL) != 0);
-    }
-    for (int u = full_words * kTile; u < width_; ++u) {
-      tile_row[u / kTile] |= static_cast<std::uint8_t>(in[u] > 127);
-    }
-  }
-  for (std::size_t t = 0; t < seeds.size(); ++t)
-    tiles_[t] |= static_cast<std::uint8_t>(seeds[t] != 0);
-  // Pixels within radius_px of each other lie in tiles at most
-  // radius_px / 8 + 1 apart. Separable box dilation by prefix counts.
-  // Beyond the image's edges nothing was seen: as foreground, so that what
-  // was just outside the image grows in too (each pass adds the tiles
-  // holding a pixel within radius_px of the edges it crosses).
-  const int r = radius_px / kTile + 1;
-  auto near_edge = [radius_px](int tile, int size) {
-    const int first = tile * kTile;
-    const int last = std::min(first + kTile, size) - 1;
-    return first + 1 <= radius_px || size - last <= radius_px;
-  };
-  for (int ty = 0; ty < tiles_y_; ++ty) {
-    const std::uint8_t* row = tiles_.data() + static_cast<std::size_t>(ty) * tiles_x_;
-    std::uint8_t* dst = scratch_.data() + static_cast<std::size_t>(ty) * tiles_x_;
-    prefix_[0] = 0;
-    for (int tx = 0; tx < tiles_x_; ++tx) prefix_[tx + 1] = prefix_[tx] + row[tx];
-    for (int tx = 0; tx < tiles_x_; ++tx) {
-      const int lo = std::max(0, tx - r);
-      const int hi = std::min(tiles_x_, tx + r + 1);
-      dst[tx] = static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0 || near_edge(tx, width_));
-    }
-  }
-  for (int tx = 0; tx < tiles_x_; ++tx) {
-    prefix_[0] = 0;
-    for (int ty = 0; ty < tiles_y_; ++ty) {
-      prefix_[ty + 1] = prefix_[ty] + scratch_[static_cast<std::size_t>(ty) * tiles_x_ + tx];
-    }
-    for (int ty = 0; ty < tiles_y_; ++ty) {
-      const int lo = std::max(0, ty - r);
-      const int hi = std::min(tiles_y_, ty + r + 1);
-      tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx] =
-          static_cast<std::uint8_t>(prefix_[hi] - prefix_[lo] > 0 || near_edge(ty, height_));
-    }
-  }
-  return tiles_;
-}
-
-int CoveringRadiusPx(const geometry::CameraModel& pinhole, double distance_m, double min_depth_m) {
-  if (distance_m <= 0.0) return 0;
-  if (distance_m >= min_depth_m) return -1;
-  const double fx = pinhole.K(0, 0);
-  const double fy = pinhole.K(1, 1);
-  const double cx = pinhole.K(0, 2);
-  const double cy = pinhole.K(1, 2);
-  double tan_max = 0.0;
-  for (const double u : {0.0, static_cast<double>(pinhole.width)}) {
-    for (const double v : {0.0, static_cast<double>(pinhole.height)}) {
-      tan_max = std::max(tan_max, std::hypot((u - cx) / fx, (v - cy) / fy));
-    }
-  }
-  const double delta = std::asin(distance_m / min_depth_m);
-  const double theta = std::atan(tan_max) + delta;
-  if (theta >= std::numbers::pi / 2 - 1e-3) return -1;
-  const double sec = 1.0 / std::cos(theta);
-  return static_cast<int>(std::ceil(std::max(fx, fy) * delta * sec * sec)) + 1;
 }
 
 }  // namespace hg::silhouette

@@ -2,6 +2,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -17,6 +18,8 @@
 #include "common/config_error.h"
 #include "common/version.h"
 #include "geometry/camera_yaml.h"
+#include "sim/body.h"
+#include "sim/scene.h"
 #include "support/run_tool.h"
 
 namespace hg::app {
@@ -133,7 +136,7 @@ TEST(ConfigTest, DefaultsOfAMinimalFile) {
   EXPECT_EQ(c.octree.boundary_coarsening, 3);
   EXPECT_EQ(c.octree.knowledge_filter_m3, 0.0);
   EXPECT_EQ(c.octree.publish_depth, 7);
-  EXPECT_EQ(c.motion.max_speed_mps, 2.0);
+  EXPECT_EQ(c.motion.max_speed_mps, 5.0);
   EXPECT_EQ(c.motion.min_camera_distance_m, 1.0);
   EXPECT_EQ(c.timing.rate_hz, 30.0);
   EXPECT_EQ(c.timing.deadline_ms, 25.0);
@@ -279,6 +282,43 @@ TEST(ConfigTest, EveryShippedConfigLoads) {
           << name << " " << cam.model.name;
     }
   }
+}
+
+// The fastest any point of a person in `scene` moves, over each script and
+// a second after.
+double FastestPartSpeed(const sim::Scene& scene) {
+  double fastest = 0.0;
+  for (const sim::Person& person : scene.people) {
+    double end_s = 0.0;
+    for (const sim::Action& a : person.actions) end_s = std::max(end_s, a.start_s + a.duration_s);
+    fastest = std::max(fastest, sim::FastestPartSpeed(person, 0.0, end_s + 1.0));
+  }
+  return fastest;
+}
+
+// The skew compensation holds only for people no faster than max_speed_mps,
+// swinging feet and arms included (a foot in swing moves at up to three times
+// the walking speed): every shipped config with simulated cameras gives a
+// speed no lower than that of its scene's fastest limb.
+TEST(ConfigTest, ShippedConfigsBoundTheSpeedOfTheirPeople) {
+  int checked = 0;
+  for (const auto& entry : fs::directory_iterator(kConfigDir)) {
+    if (entry.path().extension() != ".yaml") continue;
+    SCOPED_TRACE(entry.path().string());
+    const Config c = LoadConfig(entry.path().string());
+    std::set<std::string> scenes;
+    for (const CameraConfig& cam : c.cameras) {
+      if (const auto* sim = std::get_if<SimSourceConfig>(&cam.source)) scenes.insert(sim->scene);
+    }
+    for (const std::string& scene : scenes) {
+      const double fastest = FastestPartSpeed(sim::LoadScene(scene));
+      std::printf("%s: %s fastest part %.2f m/s, max_speed_mps %.2f\n",
+                  entry.path().filename().c_str(), scene.c_str(), fastest, c.motion.max_speed_mps);
+      EXPECT_LE(fastest, c.motion.max_speed_mps) << scene;
+      ++checked;
+    }
+  }
+  EXPECT_GE(checked, 4);
 }
 
 // The coarse passes stop at the level whose cells are no larger than the

@@ -1205,3 +1205,99 @@ TEST(OctreeObstacleTest, APlateInsideTheNearPlaneHidesEverything) {
 
 }  // namespace
 }  // namespace hg::octree
+
+namespace hg::octree {
+namespace {
+
+// Cameras that captured at other instants: each camera saw every object
+// displaced by up to its margin (in any direction), in its own view and
+// behind the obstacles as they hide it. With those margins, no point of the
+// objects where they are now is free, with exact and coarse boundaries; a
+// tree whose margins change equals one built from scratch with the new ones;
+// and without the margins the displaced views do free object points (the
+// test can fail).
+TEST(OctreeMarginTest, ObjectsThatMovedWithinTheMarginsAreNeverFree) {
+  std::int64_t freed_without = 0;
+  int cameras_with_margin = 0;
+  for (int seed = 0; seed < testing::SoakSeeds(16); ++seed) {
+    SCOPED_TRACE(::testing::Message() << "seed " << seed);
+    testing::RandomSceneOptions opt;
+    opt.num_cameras = 4 + seed % 3;
+    opt.num_objects = 3;
+    opt.num_obstacles = 1 + seed % 3;
+    const RandomScene scene = testing::MakeRandomScene(9100 + seed, opt);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> u01(0.0, 1.0);
+    std::normal_distribution<double> gauss(0.0, 1.0);
+    const auto random_margins = [&] {
+      std::vector<double> margins;
+      for (int c = 0; c < opt.num_cameras; ++c) {
+        margins.push_back(c % 3 == 0 ? 0.0 : Octree::RoundMargin(0.005 + 0.09 * u01(rng)));
+      }
+      return margins;
+    };
+    const std::vector<double> margins = random_margins();
+    std::vector<common::ImageU8> masks;
+    HiddenPixels hidden;
+    for (int c = 0; c < opt.num_cameras; ++c) {
+      cameras_with_margin += margins[c] > 0.0;
+      std::vector<scene::Shape> seen;  // Where camera c saw the objects.
+      for (const scene::Shape& object : scene.objects) {
+        Eigen::Vector3d d(gauss(rng), gauss(rng), gauss(rng));
+        d *= margins[c] * (0.5 + 0.5 * u01(rng)) / d.norm();
+        seen.push_back(scene::Translated(object, d));
+      }
+      masks.push_back(
+          RenderOccludedMasks({scene.cameras[c]}, seen, scene.obstacles, {}, &hidden)[0]);
+    }
+    const auto views = testing::MakeViews(scene.cameras, scene.obstacles);
+    Quadtrees qt(scene.cameras);
+    qt.Build(masks);
+    const int threads = 1 + seed % 2;
+    Octree exact({scene.bounds, 6, threads, /*boundary_coarsening=*/0}, views);
+    exact.Update(qt.ptrs, {}, margins);
+    ExpectObjectsNotFree(exact, scene.objects, rng, 1000);
+    // Free exactly where a dense carve of the grown cells is free: the
+    // margins take away no more than they must.
+    const DenseGrid dense = testing::DenseCarve(scene.bounds, 6, scene.cameras, Pointers(masks),
+                                                DepthMaps(views), margins);
+    const DenseGrid leaves = testing::Rasterize(exact);
+    std::size_t free_cells = 0;
+    for (std::size_t i = 0; i < dense.states.size(); ++i) {
+      const bool dense_free = dense.states[i] == static_cast<std::uint8_t>(LeafState::kFree);
+      free_cells += dense_free;
+      ASSERT_EQ(leaves.states[i] == static_cast<std::uint8_t>(LeafState::kFree), dense_free)
+          << "cell " << i;
+    }
+    EXPECT_GT(free_cells, dense.states.size() / 4);
+    Octree coarse({scene.bounds, 6, threads}, views);
+    coarse.Update(qt.ptrs, {}, margins);
+    ExpectObjectsNotFree(coarse, scene.objects, rng, 1000);
+
+    Octree without({scene.bounds, 6, threads, 0}, views);
+    without.Update(qt.ptrs);
+    for (const scene::Shape& object : scene.objects) {
+      for (int i = 0; i < 1000; ++i) {
+        const Eigen::Vector3d p = SampleNearSurface(object, rng);
+        freed_without += without.StateAt(p) == PointState::kFree;
+      }
+    }
+
+    // New margins (some cameras' only): recomputed where they changed.
+    const std::vector<double> next = random_margins();
+    exact.Update(qt.ptrs, {}, next);
+    Octree scratch({scene.bounds, 6, threads, 0}, views);
+    scratch.Update(qt.ptrs, {}, next);
+    const DenseGrid a = testing::Rasterize(exact);
+    const DenseGrid b = testing::Rasterize(scratch);
+    ASSERT_EQ(a.states.size(), b.states.size());
+    for (std::size_t i = 0; i < a.states.size(); ++i) {
+      ASSERT_EQ(a.states[i], b.states[i]) << "cell " << i << " after the margins changed";
+    }
+  }
+  EXPECT_GT(cameras_with_margin, 20);
+  EXPECT_GT(freed_without, 100) << "the displaced views were expected to free object points";
+}
+
+}  // namespace
+}  // namespace hg::octree

@@ -48,7 +48,8 @@ Verdict OracleVerdict(const geometry::CameraModel& cam, const geometry::BoxProje
 DenseGrid DenseCarve(const common::Box3& bounds, int depth,
                      const std::vector<geometry::CameraModel>& cameras,
                      const std::vector<const common::ImageU8*>& masks,
-                     const std::vector<geometry::ObstacleDepthMap>& depth_maps) {
+                     const std::vector<geometry::ObstacleDepthMap>& depth_maps,
+                     const std::vector<double>& margins) {
   DenseGrid grid;
   grid.depth = depth;
   const std::uint32_t n = 1u << depth;
@@ -65,9 +66,14 @@ DenseGrid DenseCarve(const common::Box3& bounds, int depth,
         bool any_free = false, any_foreground = false;
         for (std::size_t c = 0; c < cameras.size() && !any_free; ++c) {
           bool foreground = false;
+          common::Box3 grown = box;
+          if (!margins.empty() && margins[c] != 0.0) {
+            grown.min = box.min.array() - margins[c];
+            grown.max = box.max.array() + margins[c];
+          }
           const Verdict v =
               OracleVerdict(cameras[c], projectors[c], masks[c],
-                            depth_maps.empty() ? nullptr : &depth_maps[c], box, &foreground);
+                            depth_maps.empty() ? nullptr : &depth_maps[c], grown, &foreground);
           any_free = v == Verdict::kFree;
           any_foreground = any_foreground || (foreground && v != Verdict::kHidden);
         }

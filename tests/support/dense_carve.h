@@ -27,10 +27,13 @@ struct DenseGrid {
 
 /// Classifies every finest cell. masks[c] == nullptr: camera c sees nothing.
 /// depth_maps may be empty (no obstacles) or hold one map per camera.
+/// margins (empty: none) grows each cell by margins[c] for camera c, as
+/// octree::Octree::Update()'s margins do.
 DenseGrid DenseCarve(const common::Box3& bounds, int depth,
                      const std::vector<geometry::CameraModel>& cameras,
                      const std::vector<const common::ImageU8*>& masks,
-                     const std::vector<geometry::ObstacleDepthMap>& depth_maps);
+                     const std::vector<geometry::ObstacleDepthMap>& depth_maps,
+                     const std::vector<double>& margins = {});
 
 /// The octree's leaves painted onto the finest grid.
 DenseGrid Rasterize(const octree::Octree& tree);

@@ -35,6 +35,7 @@ struct BenchFlags {
   int coarse_first_depth = 0;
   int key_level = 0;
   int settle_level = 0;
+  double max_speed_mps = 0.0;
   double deadline_ms = 0.0;
   std::string baseline;
   int truth_points = 2000;
@@ -94,8 +95,9 @@ int RunBench(const BenchFlags& f) {
   }
   if (f.cameras > 0) scene.cameras.resize(static_cast<std::size_t>(f.cameras));
   const double dt = 1.0 / scene.rate_hz;
-  SceneEngine engine(std::move(scene), {f.depth, f.threads, f.boundary_coarsening,
-                                        f.coarse_first_depth, f.key_level, f.settle_level});
+  SceneEngine engine(std::move(scene),
+                     {f.depth, f.threads, f.boundary_coarsening, f.coarse_first_depth, f.key_level,
+                      f.settle_level, f.max_speed_mps});
   const sim::Scene& s = engine.scene();
 
   // The baseline carves the same undistorted masks and answers point queries.
@@ -171,8 +173,8 @@ int RunBench(const BenchFlags& f) {
         }
       }
     }
-    const std::vector<Eigen::Vector3d> points =
-        SampleTruthPoints(s, t, f.truth_points, 1000 + static_cast<std::uint64_t>(frame));
+    const std::vector<Eigen::Vector3d> points = SampleTruthPoints(
+        s, t, f.truth_points, 1000 + static_cast<std::uint64_t>(frame), f.max_speed_mps > 0.0);
     const TruthCheck check = CheckTruth(engine.tree(), points);
     truth.points += check.points;
     truth.reported_free += check.reported_free;
@@ -352,6 +354,11 @@ void RegisterBench(CLI::App& app, int* exit_code) {
                   "Stop refining a cell of this level once a leaf in it reads occupied (the "
                   "daemon's publish_depth; 0: off; see octree::OctreeConfig::settle_level)")
       ->check(CLI::Range(0, 19));
+  cmd->add_option("--max-speed", flags->max_speed_mps,
+                  "Compensate the scene's capture offsets as the daemon does for people up to "
+                  "this fast (m/s; motion.max_speed_mps): the tree then holds the people as "
+                  "they were at the latest capture, and is checked against that. 0: off")
+      ->check(CLI::Range(0.0, 100.0));
   cmd->add_option("--key-level", flags->key_level,
                   "With --coarse-first: a pass also stops at this level (the daemon uses its "
                   "tracking voxel's level; docs/reconstruction.md)")

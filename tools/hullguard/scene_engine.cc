@@ -47,6 +47,15 @@ SceneEngine::SceneEngine(sim::Scene scene, const SceneEngineOptions& options)
   config.key_level = options.key_level;
   config.settle_level = options.settle_level;
   tree_ = std::make_unique<octree::Octree>(config, std::move(views));
+  if (options.max_speed_mps > 0.0) {
+    double latest = 0.0;
+    for (const sim::SceneCamera& camera : s.cameras)
+      latest = std::max(latest, camera.time_offset_s);
+    for (const sim::SceneCamera& camera : s.cameras) {
+      margins_.push_back(
+          octree::Octree::RoundMargin(options.max_speed_mps * (latest - camera.time_offset_s)));
+    }
+  }
 }
 
 const common::ImageU8& SceneEngine::PinholeMask(int camera) const {
@@ -70,20 +79,24 @@ FrameTimes SceneEngine::Step(double t_s, const octree::UpdateControl& control,
     budgeted.deadline = std::chrono::steady_clock::now() +
                         std::chrono::microseconds(std::llround(octree_budget_ms * 1e3));
   }
-  times.octree = tree_->Update(quadtree_ptrs_, budgeted);
+  times.octree = tree_->Update(quadtree_ptrs_, budgeted, margins_);
   return times;
 }
 
 std::vector<Eigen::Vector3d> SampleTruthPoints(const sim::Scene& scene, double t_s, int per_person,
-                                               std::uint64_t seed) {
+                                               std::uint64_t seed, bool compensated) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::vector<Eigen::Vector3d> points;
+  double latest = 0.0;
+  for (const sim::SceneCamera& camera : scene.cameras) {
+    latest = std::max(latest, camera.time_offset_s);
+  }
   for (const sim::Person& person : scene.people) {
-    const sim::BodyState body = sim::EvaluatePerson(person, t_s);
+    const sim::BodyState body = sim::EvaluatePerson(person, compensated ? t_s + latest : t_s);
     std::vector<sim::BodyState> seen;  // The body at each camera's capture time.
     for (const sim::SceneCamera& camera : scene.cameras) {
-      if (camera.time_offset_s != 0.0) {
+      if (!compensated && camera.time_offset_s != 0.0) {
         seen.push_back(sim::EvaluatePerson(person, t_s + camera.time_offset_s));
       }
     }

@@ -23,6 +23,10 @@ struct SceneEngineOptions {
   int coarse_first_depth = octree::OctreeConfig{}.coarse_first_depth;
   int key_level = 0;     ///< octree::OctreeConfig::key_level.
   int settle_level = 0;  ///< octree::OctreeConfig::settle_level.
+  /// Capture skew compensated as the daemon does (PipelineOptions::max_speed_mps):
+  /// each camera's octree margin is the distance a person at this speed covers
+  /// between its capture offset and the scene's latest. 0: off.
+  double max_speed_mps = 0.0;
 };
 
 /// Wall-clock times of one frame's stages.
@@ -60,6 +64,7 @@ class SceneEngine {
   std::vector<common::ImageU8> undistorted_;
   std::vector<silhouette::SilhouetteQuadtree> quadtrees_;
   std::vector<const silhouette::SilhouetteQuadtree*> quadtree_ptrs_;
+  std::vector<double> margins_;  // Per camera (empty: none).
 };
 
 /// Points sampled inside people, checked against the tree.
@@ -71,9 +76,13 @@ struct TruthCheck {
 /// Samples `per_person` points inside each person's body at scene time t_s and
 /// keeps those that are inside the body at every camera's capture time too
 /// (with capture offsets a camera saw the body elsewhere; only points every
-/// camera saw inside are guaranteed occupied). Deterministic for `seed`.
+/// camera saw inside are guaranteed occupied). With `compensated` (skew
+/// compensation on, SceneEngineOptions::max_speed_mps), the points are
+/// sampled in the body as it was at the latest capture time instead, which
+/// the compensated tree holds for. Deterministic for `seed`.
 [[nodiscard]] std::vector<Eigen::Vector3d> SampleTruthPoints(const sim::Scene& scene, double t_s,
-                                                             int per_person, std::uint64_t seed);
+                                                             int per_person, std::uint64_t seed,
+                                                             bool compensated = false);
 
 [[nodiscard]] TruthCheck CheckTruth(const octree::Octree& tree,
                                     const std::vector<Eigen::Vector3d>& points);
