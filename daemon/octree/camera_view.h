@@ -48,7 +48,7 @@ enum class Verdict : std::uint8_t {
   /// Every footprint pixel is foreground or outside the image (in the octree,
   /// with a margin, also: every sub-box's grown footprint holds foreground).
   kFull = 2,
-  kMixed = 3,   ///< Anything else: a smaller box may get another verdict.
+  kMixed = 3,  ///< Anything else: a smaller box may get another verdict.
 };
 
 /// Where a box lies relative to the static obstacles in one camera's view:
