@@ -148,6 +148,10 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
     char cam[128];
     std::snprintf(cam, sizeof(cam), " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
     line += cam;
+    if (c.margin_m > 0.0) {
+      std::snprintf(cam, sizeof(cam), " margin %.1f cm", c.margin_m * 100.0);
+      line += cam;
+    }
     if (c.learning) line += " learning";  // The background: all foreground meanwhile.
     if (c.corrupt > 0) line += std::string(" corrupt ").append(std::to_string(c.corrupt));
     // Transport trouble of a GigE Vision camera: lost packets, host too slow.

@@ -169,8 +169,8 @@ class Octree {
   /// `margins_m` (empty: all 0) holds per camera a distance (m, 0 or at least
   /// kMinMargin): the camera certifies a box free only when it certifies free
   /// the box grown by that distance on every side. A camera whose frame is
-  /// older than the moment the update stands for gets the distance a person
-  /// can cover meanwhile: whoever is in the box now was within that distance
+  /// from another instant than the one the update stands for gets the
+  /// distance a person can cover in between: whoever is in the box now was within that distance
   /// of it then, where the camera saw background, in its view and in front of
   /// every obstacle. A camera whose margin changes is recomputed everywhere.
   UpdateStats Update(std::span<const silhouette::SilhouetteQuadtree* const> masks,
@@ -188,8 +188,6 @@ class Octree {
     if (m < distance_m) m += kMarginStep;
     return m;
   }
-  /// The margins of the last update (m), per camera.
-  [[nodiscard]] std::span<const double> Margins() const { return margin_; }
 
   /// Drops every node: the next update builds from scratch.
   void Reset();

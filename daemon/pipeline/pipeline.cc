@@ -427,6 +427,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       oldest_used = std::min(oldest_used, c.last_stamp_ns);
     }
     margins_[i] = c.margin_m;  // Kept while the camera is out: no recomputation for it.
+    health.cameras[i].margin_m = live ? c.margin_m : 0.0;
     // A camera that comes back was absent from the octree's view: every
     // region is new to it.
     if (live && !c.was_live) c.quadtree.MarkAllChanged();

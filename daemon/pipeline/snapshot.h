@@ -40,6 +40,11 @@ struct CameraHealth {
   std::uint64_t failed = 0;     ///< Failed, incomplete or unusable frames.
   std::uint64_t underruns = 0;  ///< Frames lost for lack of a free buffer.
   std::uint64_t resends = 0;    ///< Packets the camera resent on request.
+  /// How far beyond what this camera saw free it certifies nothing this
+  /// cycle (m): the distance a person covers between its frame's capture
+  /// and the snapshot's stamp (PipelineOptions::max_speed_mps), rounded up
+  /// and held a while. 0 for a frame of the snapshot's instant.
+  double margin_m = 0.0;
 };
 
 struct PipelineHealth {

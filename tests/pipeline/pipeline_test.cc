@@ -363,6 +363,12 @@ TEST(PipelineTest, CaptureSkewIsCompensated) {
         seen = s->sequence;
         free += rig.PointsReportedFree(*s);
         *skew_ms = std::max(*skew_ms, s->health.skew_ms);
+        // The oldest frame's margin covers the walk over the skew (stamped
+        // at the newest), or over the larger part of it (at the median).
+        double widest = 0.0;
+        for (const CameraHealth& h : s->health.cameras) widest = std::max(widest, h.margin_m);
+        EXPECT_GE(widest + 1e-9,
+                  max_speed_mps * s->health.skew_ms * 1e-3 * (stamp_at_median ? 0.5 : 1.0));
         ++snapshots;
       }
       std::this_thread::sleep_for(5ms);
