@@ -759,7 +759,7 @@ bool AravisSource::Next(Frame* frame, milliseconds timeout) {
           system_ns != 0 ? static_cast<std::int64_t>(system_ns) : RealtimeNowNs();
       // The image shows the scene during the exposure, which ended before
       // the frame arrived: stamping no later than that keeps the pipeline's
-      // capture-skew dilation large enough.
+      // capture-skew margin large enough.
       frame->stamp_ns = arrival_ns - active_->exposure_ns;
       const guint64 device_ns = arv_buffer_get_timestamp(newest);
       frame->device_stamp_ns = device_ns != 0 ? static_cast<std::int64_t>(device_ns) : -1;

@@ -72,7 +72,7 @@ struct AravisOptions {
 /// reused buffers and stamps it with the host's CLOCK_REALTIME time of the
 /// frame's arrival (Aravis' system timestamp) minus the exposure time, an
 /// instant no later than the end of the exposure: a late stamp would make the
-/// capture-skew dilation too small. Failed or incomplete buffers are counted
+/// capture-skew margin too small. Failed or incomplete buffers are counted
 /// in corrupt_frames() and skipped. When no complete frame arrives for
 /// frame_timeout, Next() declares the connection lost, hands the camera to the
 /// control thread for release and returns false; a new connection is picked

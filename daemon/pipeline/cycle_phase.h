@@ -32,7 +32,7 @@ struct CyclePhaseOptions {
 /// when the daemon started. A cycle that starts just before a camera's frame
 /// is ready uses that camera's previous frame, up to a period older: the
 /// snapshot is stamped up to a period earlier than it could be (latency), and
-/// the older mask is dilated for the motion meanwhile (a looser hull).
+/// the older frame certifies less free, by the motion meanwhile (a looser hull).
 ///
 /// Each cycle, the instants at which the cameras' newest frames became ready,
 /// taken modulo the period, lie around the cycle's circle. The widest gap
