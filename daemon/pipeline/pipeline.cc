@@ -387,10 +387,10 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
     h.resends = transport.resends;
     health.degraded = health.degraded || !live;
   }
-  // Pass 2: quadtrees, and each camera's margin for its lag behind the
-  // newest frame (PipelineOptions::max_speed_mps).
-  // The instant the snapshot holds for: the newest capture time, or the
-  // median of the live cameras' (PipelineOptions::stamp_at_median).
+  // Pass 2: the instant the snapshot holds for (the newest capture time, or
+  // the median of the live cameras', PipelineOptions::stamp_at_median), then
+  // per camera its quadtree and its margin for the gap between its frame's
+  // capture and that instant (PipelineOptions::max_speed_mps).
   std::int64_t stamp = newest_stamp;
   std::array<std::int64_t, common::kMaxCameras> stamps{};
   std::size_t num_live = 0;
@@ -411,10 +411,9 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       const double needed =
           options_.max_speed_mps * static_cast<double>(std::llabs(stamp - c.last_stamp_ns)) * 1e-9;
       const double margin = octree::Octree::RoundMargin(needed);
-      if (margin >= c.margin_m) {
-        c.margin_m = margin;
-        c.margin_held_until_ns = now_ns + kMarginHoldNs;
-      } else if (now_ns >= c.margin_held_until_ns) {
+      // Up at once; down only once the hold has passed (each change makes
+      // the octree recompute the camera everywhere).
+      if (margin >= c.margin_m || now_ns >= c.margin_held_until_ns) {
         c.margin_m = margin;
         c.margin_held_until_ns = now_ns + kMarginHoldNs;
       }
