@@ -1563,6 +1563,13 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   const bool timing_read = r.error_count() == errors_before_timing;
   ReadSection<ThreadsConfig>(r, sections, "threads", kThreadsFields, &config.threads);
   ReadSection<MotionConfig>(r, sections, "motion", kMotionFields, &config.motion);
+  if (const int line = key_line("motion", "min_camera_distance_m"); line != 0) {
+    config.notices.emplace_back(
+        ConfigError::At(r.file(), line,
+                        "motion.min_camera_distance_m: ignored (the skew compensation now holds "
+                        "at any distance from the cameras); remove it")
+            .what());
+  }
   const std::size_t errors_before_background = r.error_count();
   ReadSection<BackgroundConfig>(r, sections, "background", kBackgroundFields, &config.background);
   if (r.error_count() == errors_before_background &&

@@ -223,6 +223,10 @@ struct Config {
   LoggingConfig logging;
   BlackBoxConfig blackbox;
   TrackingConfig tracking;
+  /// Keys the file sets that are accepted but have no effect any more, one
+  /// "file:line: key: note" each: hullguardd prints them on stderr before it
+  /// starts (or checks) the config.
+  std::vector<std::string> notices;
 };
 
 /// Reads and validates a config file. Relative paths in it are resolved against

@@ -74,6 +74,7 @@ int main(int argc, char** argv) {
     std::cerr << path << ": " << e.what() << '\n';
     return kExitBadConfig;
   }
+  for (const std::string& notice : config.notices) std::cerr << notice << '\n';
   if (!check_path.empty()) {
     std::cout << "config OK: " << hg::app::Summary(config) << '\n';
     return 0;
