@@ -36,6 +36,7 @@ struct BenchFlags {
   int key_level = 0;
   int settle_level = 0;
   double max_speed_mps = 0.0;
+  bool stamp_at_median = false;
   double deadline_ms = 0.0;
   std::string baseline;
   int truth_points = 2000;
@@ -97,7 +98,7 @@ int RunBench(const BenchFlags& f) {
   const double dt = 1.0 / scene.rate_hz;
   SceneEngine engine(std::move(scene),
                      {f.depth, f.threads, f.boundary_coarsening, f.coarse_first_depth, f.key_level,
-                      f.settle_level, f.max_speed_mps});
+                      f.settle_level, f.max_speed_mps, f.stamp_at_median});
   const sim::Scene& s = engine.scene();
 
   // The baseline carves the same undistorted masks and answers point queries.
@@ -174,7 +175,8 @@ int RunBench(const BenchFlags& f) {
       }
     }
     const std::vector<Eigen::Vector3d> points = SampleTruthPoints(
-        s, t, f.truth_points, 1000 + static_cast<std::uint64_t>(frame), f.max_speed_mps > 0.0);
+        s, t, f.truth_points, 1000 + static_cast<std::uint64_t>(frame),
+        f.max_speed_mps > 0.0 ? std::optional(StampOffset(s, f.stamp_at_median)) : std::nullopt);
     const TruthCheck check = CheckTruth(engine.tree(), points);
     truth.points += check.points;
     truth.reported_free += check.reported_free;
@@ -359,6 +361,9 @@ void RegisterBench(CLI::App& app, int* exit_code) {
                   "this fast (m/s; motion.max_speed_mps): the tree then holds the people as "
                   "they were at the latest capture, and is checked against that. 0: off")
       ->check(CLI::Range(0.0, 100.0));
+  cmd->add_flag("--stamp-at-median", flags->stamp_at_median,
+                "With --max-speed: hold the people as they were at the median capture offset "
+                "instead of the latest (motion.stamp_at_median)");
   cmd->add_option("--key-level", flags->key_level,
                   "With --coarse-first: a pass also stops at this level (the daemon uses its "
                   "tracking voxel's level; docs/reconstruction.md)")

@@ -48,14 +48,20 @@ SceneEngine::SceneEngine(sim::Scene scene, const SceneEngineOptions& options)
   config.settle_level = options.settle_level;
   tree_ = std::make_unique<octree::Octree>(config, std::move(views));
   if (options.max_speed_mps > 0.0) {
-    double latest = 0.0;
-    for (const sim::SceneCamera& camera : s.cameras)
-      latest = std::max(latest, camera.time_offset_s);
+    const double stamp = StampOffset(s, options.stamp_at_median);
     for (const sim::SceneCamera& camera : s.cameras) {
-      margins_.push_back(
-          octree::Octree::RoundMargin(options.max_speed_mps * (latest - camera.time_offset_s)));
+      margins_.push_back(octree::Octree::RoundMargin(options.max_speed_mps *
+                                                     std::abs(stamp - camera.time_offset_s)));
     }
   }
+}
+
+double StampOffset(const sim::Scene& scene, bool median) {
+  std::vector<double> offsets;
+  for (const sim::SceneCamera& camera : scene.cameras) offsets.push_back(camera.time_offset_s);
+  if (offsets.empty()) return 0.0;
+  std::sort(offsets.begin(), offsets.end());
+  return median ? offsets[(offsets.size() - 1) / 2] : offsets.back();
 }
 
 const common::ImageU8& SceneEngine::PinholeMask(int camera) const {
@@ -84,16 +90,14 @@ FrameTimes SceneEngine::Step(double t_s, const octree::UpdateControl& control,
 }
 
 std::vector<Eigen::Vector3d> SampleTruthPoints(const sim::Scene& scene, double t_s, int per_person,
-                                               std::uint64_t seed, bool compensated) {
+                                               std::uint64_t seed,
+                                               std::optional<double> stamp_offset_s) {
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
   std::vector<Eigen::Vector3d> points;
-  double latest = 0.0;
-  for (const sim::SceneCamera& camera : scene.cameras) {
-    latest = std::max(latest, camera.time_offset_s);
-  }
+  const bool compensated = stamp_offset_s.has_value();
   for (const sim::Person& person : scene.people) {
-    const sim::BodyState body = sim::EvaluatePerson(person, compensated ? t_s + latest : t_s);
+    const sim::BodyState body = sim::EvaluatePerson(person, t_s + stamp_offset_s.value_or(0.0));
     std::vector<sim::BodyState> seen;  // The body at each camera's capture time.
     for (const sim::SceneCamera& camera : scene.cameras) {
       if (!compensated && camera.time_offset_s != 0.0) {

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "common/image.h"
@@ -25,9 +26,15 @@ struct SceneEngineOptions {
   int settle_level = 0;  ///< octree::OctreeConfig::settle_level.
   /// Capture skew compensated as the daemon does (PipelineOptions::max_speed_mps):
   /// each camera's octree margin is the distance a person at this speed covers
-  /// between its capture offset and the scene's latest. 0: off.
+  /// between its capture offset and the scene's latest (or their median,
+  /// `stamp_at_median`). 0: off.
   double max_speed_mps = 0.0;
+  bool stamp_at_median = false;  ///< PipelineOptions::stamp_at_median.
 };
+
+/// The capture offset (s) a compensated tree holds the scene for: the
+/// latest of the cameras', or their (lower) median.
+[[nodiscard]] double StampOffset(const sim::Scene& scene, bool median);
 
 /// Wall-clock times of one frame's stages.
 struct FrameTimes {
@@ -76,13 +83,14 @@ struct TruthCheck {
 /// Samples `per_person` points inside each person's body at scene time t_s and
 /// keeps those that are inside the body at every camera's capture time too
 /// (with capture offsets a camera saw the body elsewhere; only points every
-/// camera saw inside are guaranteed occupied). With `compensated` (skew
+/// camera saw inside are guaranteed occupied). With `stamp_offset_s` (skew
 /// compensation on, SceneEngineOptions::max_speed_mps), the points are
-/// sampled in the body as it was at the latest capture time instead, which
-/// the compensated tree holds for. Deterministic for `seed`.
-[[nodiscard]] std::vector<Eigen::Vector3d> SampleTruthPoints(const sim::Scene& scene, double t_s,
-                                                             int per_person, std::uint64_t seed,
-                                                             bool compensated = false);
+/// sampled in the body as it was at t_s + stamp_offset_s instead
+/// (StampOffset()), which the compensated tree holds for. Deterministic for
+/// `seed`.
+[[nodiscard]] std::vector<Eigen::Vector3d> SampleTruthPoints(
+    const sim::Scene& scene, double t_s, int per_person, std::uint64_t seed,
+    std::optional<double> stamp_offset_s = std::nullopt);
 
 [[nodiscard]] TruthCheck CheckTruth(const octree::Octree& tree,
                                     const std::vector<Eigen::Vector3d>& points);
