@@ -170,6 +170,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
     out.failed = c.failed;
     out.underruns = c.underruns;
     out.resends = c.resends;
+    out.margin_m = static_cast<float>(c.margin_m);
   }
   st.silhouette_ms = static_cast<float>(health.silhouette_ms);
   st.skew_ms = static_cast<float>(health.skew_ms);

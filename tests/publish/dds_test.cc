@@ -65,6 +65,7 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
       {"cam_south", pipeline::CameraState::kStale, 0.0, 450.5, 880, 0, 0},
       {"cam_über", pipeline::CameraState::kFailed, 0.0, 0.0, 0, 0, 7},
   };
+  s.health.cameras[1].margin_m = 0.065;
   s.health.silhouette_ms = 4.5;
   s.health.octree_ms = 11.75;
   s.health.cycle_ms = 18.25;
@@ -208,6 +209,7 @@ void ExpectSameContent(const pipeline::OccupancySnapshot& sent, const ReceivedOc
     EXPECT_EQ(st.cameras[i].frames, h.cameras[i].frames);
     EXPECT_EQ(st.cameras[i].drops, h.cameras[i].drops);
     EXPECT_EQ(st.cameras[i].corrupt, h.cameras[i].corrupt);
+    EXPECT_EQ(st.cameras[i].margin_m, static_cast<float>(h.cameras[i].margin_m));
   }
 }
 

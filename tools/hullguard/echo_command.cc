@@ -238,18 +238,23 @@ void PrintStatus(const hullguard_Status& s, bool json) {
     if (json) {
       std::snprintf(buf, sizeof(buf), "%s{\"name\": ", i == 0 ? "" : ", ");
       cameras += buf + JsonString(c.name);
-      std::snprintf(
-          buf, sizeof(buf),
-          ", \"state\": \"%s\", \"fps\": %.2f, \"fault\": \"%s\", \"completed\": %llu, "
-          "\"failed\": %llu, \"underruns\": %llu, \"resends\": %llu}",
-          CameraStateName(c.state), c.fps, FaultName(c.fault),
-          static_cast<unsigned long long>(c.completed), static_cast<unsigned long long>(c.failed),
-          static_cast<unsigned long long>(c.underruns), static_cast<unsigned long long>(c.resends));
+      std::snprintf(buf, sizeof(buf),
+                    ", \"state\": \"%s\", \"fps\": %.2f, \"fault\": \"%s\", \"completed\": %llu, "
+                    "\"failed\": %llu, \"underruns\": %llu, \"resends\": %llu, \"margin_m\": %.3f}",
+                    CameraStateName(c.state), c.fps, FaultName(c.fault),
+                    static_cast<unsigned long long>(c.completed),
+                    static_cast<unsigned long long>(c.failed),
+                    static_cast<unsigned long long>(c.underruns),
+                    static_cast<unsigned long long>(c.resends), c.margin_m);
       cameras += buf;
     } else {
       std::snprintf(buf, sizeof(buf), ":%s@%.1ffps%s%s", CameraStateName(c.state), c.fps,
                     c.fault != 0 ? ":" : "", c.fault != 0 ? FaultName(c.fault) : "");
       cameras += (i == 0 ? "" : " ") + std::string(c.name != nullptr ? c.name : "") + buf;
+      if (c.margin_m > 0.0F) {
+        std::snprintf(buf, sizeof(buf), ":margin=%.1fcm", c.margin_m * 100.0F);
+        cameras += buf;
+      }
       // Transport counters: GigE Vision sources only (all zero otherwise).
       if (c.completed + c.failed + c.underruns + c.resends > 0) {
         std::snprintf(buf, sizeof(buf), ":completed=%llu,failed=%llu,underruns=%llu,resends=%llu",
