@@ -562,7 +562,11 @@ class Octree::Updater {
       if (((recompute >> c) & 1u) == 0) continue;
       bool geometric = false;
       Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], relation(c), &geometric);
-      if (v == Verdict::kMixed && CoreSeesForeground(c, box)) {
+      // Only for a grown box in front of the camera: across its plane the
+      // verdict counts as unchangeable (ChangedIn), while the core's
+      // foreground can leave.
+      if (v == Verdict::kMixed && fps[c].side == geometry::Footprint::Side::kInFront &&
+          CoreSeesForeground(c, box)) {
         v = Verdict::kFull;
         geometric = false;
       }

@@ -1301,3 +1301,44 @@ TEST(OctreeMarginTest, ObjectsThatMovedWithinTheMarginsAreNeverFree) {
 
 }  // namespace
 }  // namespace hg::octree
+
+namespace hg::octree {
+namespace {
+
+// A node whose grown box reaches across a camera's plane while its core lies
+// in front: the core's foreground must not make the camera's verdict FULL,
+// since a verdict across the plane counts as unchangeable and would outlive
+// the foreground. Once the object is gone, the incremental tree equals a
+// build from scratch.
+TEST(OctreeMarginTest, AGrownBoxAcrossTheCameraPlaneFollowsTheForegroundAway) {
+  const common::Box3 bounds{{0, 0, 0}, {2, 2, 2}};
+  const double m = 0.02;
+  // The level-6 cell [1, 1.03125]^3, and a camera on its axis 1 mm in front
+  // of its grown lower face, looking along +z.
+  const Eigen::Vector3d eye(1.015625, 1.015625, 1.0 - m + 0.001);
+  const geometry::CameraModel cam =
+      testing::LookAtCamera(eye, eye + Eigen::Vector3d(0, 0, 1), 64, 64, 8.0);
+  const std::vector<geometry::CameraModel> cams = {cam};
+  const auto views = testing::MakeViews(cams, {});
+  const OctreeConfig config{bounds, 7, 1, /*boundary_coarsening=*/0};
+  const std::vector<double> margins = {m};
+  Octree incremental(config, views);
+  Quadtrees qt(cams);
+  // A small ball in the cell's core, then nothing.
+  qt.Build(testing::RenderMasks(cams, {scene::Sphere{{1.015625, 1.015625, 1.0156}, 0.003}}));
+  incremental.Update(qt.ptrs, {}, margins);
+  const auto empty = testing::RenderMasks(cams, {});
+  qt.Build(empty);
+  ASSERT_FALSE(incremental.Update(qt.ptrs, {}, margins).aborted);
+  Octree scratch(config, views);
+  Quadtrees fresh(cams);
+  fresh.Build(empty);
+  scratch.Update(fresh.ptrs, {}, margins);
+  const Eigen::Vector3d p(1.02, 1.02, 1.025);  // In the cell, seen on background.
+  EXPECT_EQ(scratch.StateAt(p), PointState::kFree);
+  EXPECT_EQ(incremental.StateAt(p), PointState::kFree);
+  EXPECT_EQ(testing::LeafDifference(incremental, scratch), "");
+}
+
+}  // namespace
+}  // namespace hg::octree
