@@ -1299,12 +1299,6 @@ TEST(OctreeMarginTest, ObjectsThatMovedWithinTheMarginsAreNeverFree) {
   EXPECT_GT(freed_without, 100) << "the displaced views were expected to free object points";
 }
 
-}  // namespace
-}  // namespace hg::octree
-
-namespace hg::octree {
-namespace {
-
 // A node whose grown box reaches across a camera's plane while its core lies
 // in front: the core's foreground must not make the camera's verdict FULL,
 // since a verdict across the plane counts as unchangeable and would outlive

@@ -932,15 +932,8 @@ namespace {
 // occupied nor occluded, and how many cells lie inside it.
 std::pair<int, int> FreeCellsInside(const OccupancySnapshot& s, const scene::Shape& shape) {
   const int n = 1 << s.depth;
-  std::vector<bool> listed(static_cast<std::size_t>(n) * n * n, false);
-  for (const auto* runs : {&s.occupied, &s.occluded}) {
-    for (const GridRun& r : *runs) {
-      for (int k = 0; k < r.length; ++k) {
-        listed[static_cast<std::size_t>(r.x + k) + static_cast<std::size_t>(n) * (r.y + n * r.z)] =
-            true;
-      }
-    }
-  }
+  const std::vector<std::uint8_t> listed =
+      testing::ListedCells(s.depth, {&s.occupied, &s.occluded});
   int free = 0, inside = 0;
   for (int z = 0; z < n; ++z) {
     for (int y = 0; y < n; ++y) {

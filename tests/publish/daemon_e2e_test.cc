@@ -261,25 +261,15 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
   }
   EXPECT_EQ(free, 0);
   ASSERT_GT(before, 5U) << daemon.Log();
-  const int n = 1 << baseline->depth;
-  auto listed_cells = [n](const OccupancySample& s) {
-    std::vector<bool> cells(static_cast<std::size_t>(n) * n * n, false);
-    for (const auto* runs : {&s.occupied, &s.occluded}) {
-      for (const hullguard_GridRun& r : *runs) {
-        for (int k = 0; k < r.length; ++k) {
-          cells[static_cast<std::size_t>(r.x + k) + static_cast<std::size_t>(n) * (r.y + n * r.z)] =
-              true;
-        }
-      }
-    }
-    return cells;
+  auto listed_cells = [](const OccupancySample& s) {
+    return testing::ListedCells(s.depth, {&s.occupied, &s.occluded});
   };
-  const std::vector<bool> base = listed_cells(*baseline);
+  const std::vector<std::uint8_t> base = listed_cells(*baseline);
   std::size_t checked = 0, dropped = 0;
   for (const OccupancySample& s : controller.occupancy_samples) {
     if (s.stamp_ns < stop_ns - 300'000'000LL) continue;
     ASSERT_EQ(s.depth, baseline->depth);
-    const std::vector<bool> now = listed_cells(s);
+    const std::vector<std::uint8_t> now = listed_cells(s);
     for (std::size_t c = 0; c < base.size(); ++c) dropped += base[c] && !now[c] ? 1 : 0;
     ++checked;
     after += s.stamp_ns > stop_ns + 500'000'000LL ? 1 : 0;

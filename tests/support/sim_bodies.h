@@ -26,13 +26,11 @@ namespace hg::testing {
 [[nodiscard]] std::vector<Eigen::Vector3d> PointsInPeople(const sim::Scene& scene, double t_s,
                                                           int per_part, std::uint64_t seed);
 
-/// Of `points`, how many fall in a grid cell (2^depth per axis over `bounds`)
-/// that is not in `listed` (runs of cells x .. x + length - 1 at y, z); points
-/// outside the bounds are not counted.
+/// The cells of a 2^depth grid (x fastest) that some run of `listed` holds
+/// (runs of cells x .. x + length - 1 at y, z): 1 there, 0 elsewhere.
 template <class Cell>
-int PointsInUnlistedCells(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& lo,
-                          const Eigen::Vector3d& hi, int depth,
-                          std::initializer_list<const std::vector<Cell>*> listed) {
+std::vector<std::uint8_t> ListedCells(int depth,
+                                      std::initializer_list<const std::vector<Cell>*> listed) {
   const int n = 1 << depth;
   std::vector<std::uint8_t> in(static_cast<std::size_t>(n) * n * n, 0);
   for (const auto* cells : listed) {
@@ -42,6 +40,18 @@ int PointsInUnlistedCells(const std::vector<Eigen::Vector3d>& points, const Eige
       }
     }
   }
+  return in;
+}
+
+/// Of `points`, how many fall in a grid cell (2^depth per axis over `bounds`)
+/// that is not in `listed` (ListedCells); points outside the bounds are not
+/// counted.
+template <class Cell>
+int PointsInUnlistedCells(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& lo,
+                          const Eigen::Vector3d& hi, int depth,
+                          std::initializer_list<const std::vector<Cell>*> listed) {
+  const int n = 1 << depth;
+  const std::vector<std::uint8_t> in = ListedCells(depth, listed);
   int free = 0;
   for (const Eigen::Vector3d& p : points) {
     const Eigen::Vector3d rel = (p - lo).cwiseQuotient(hi - lo) * n;
