@@ -83,11 +83,13 @@ BlobFilterStats BlobFilter::Apply(std::vector<GridRun>* occupied,
   for (int i = 0; i < total; ++i) {
     const GridRun& r = run(i);
     const int root = Find(i);
-    if (root == i) ++stats.components;
     const bool face =
         r.x == 0 || r.x + r.length == n_ || r.y == 0 || r.y == n_ - 1 || r.z == 0 || r.z == n_ - 1;
     if (i >= num_occupied || face) keep_[root] = 1;
     if (i < num_occupied) cells_[root] += r.length;
+  }
+  for (int i = 0; i < total; ++i) {
+    if (Find(i) == i && cells_[i] > 0) ++stats.components;
   }
   std::size_t out = 0;
   for (int i = 0; i < num_occupied; ++i) {

@@ -12,7 +12,9 @@ namespace hg::pipeline {
 
 /// What one Apply() did.
 struct BlobFilterStats {
-  int components = 0;          ///< Connected groups of not-free cells.
+  /// Connected groups of not-free cells that hold an occupied cell (groups of
+  /// occluded cells alone are not counted: the filter never drops them).
+  int components = 0;
   int dropped_components = 0;  ///< Groups whose occupied cells were dropped.
   std::size_t dropped_cells = 0;
 };

@@ -99,6 +99,20 @@ TEST(BlobFilterTest, ASmallIsolatedBlobIsDropped) {
   EXPECT_EQ(OccupancySnapshot::Cells(occupied), 16u);
 }
 
+TEST(BlobFilterTest, ComponentsCountTheGroupsHoldingOccupiedCells) {
+  Grid g(16);
+  g.at(2, 2, 2) = kOccluded;  // Occluded alone: not counted.
+  g.at(8, 8, 8) = kOccupied;  // Occupied, touching an occluded cell: one group.
+  g.at(9, 9, 9) = kOccluded;
+  g.at(12, 4, 4) = kOccupied;  // On its own: a second group.
+  std::vector<GridRun> occupied = RunsOf(g, kOccupied);
+  const std::vector<GridRun> occluded = RunsOf(g, kOccluded);
+  BlobFilter filter(4, 1);
+  EXPECT_EQ(filter.Apply(&occupied, occluded).components, 2);
+  std::vector<GridRun> none;
+  EXPECT_EQ(filter.Apply(&none, occluded).components, 0);
+}
+
 TEST(BlobFilterTest, BlobsTouchingUnseenSpaceOrTheBoundsAreKept) {
   // Touching an occluded cell at a corner only.
   Grid g(16);
