@@ -245,14 +245,18 @@ class Octree::Updater {
 
   // Footprint of child i in camera c from the shared corner grid: bit-identical
   // to FootprintOf() of the child's own box (BoxProjector::ProjectGrid).
-  geometry::Footprint ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i) const {
+  // Written in place (*out) rather than returned: a returned footprint went
+  // through a stack slot whose field-wise stores the caller's wider copy
+  // could not forward from, which cost more than the projection.
+  void ChildFootprint(WorkerScratch::ChildGrid& g, int c, int i, geometry::Footprint* out) const {
     Project(g, c);
     if (tree_.margin_[c] != 0.0) {
-      return geometry::BoxProjector::FromCorners<4>(g.uv[c], g.z[c], 2 * (i & 1),
+      *out = geometry::BoxProjector::FromCorners<4>(g.uv[c], g.z[c], 2 * (i & 1),
                                                     2 * ((i >> 1) & 1), 2 * ((i >> 2) & 1));
+    } else {
+      *out = geometry::BoxProjector::FromCorners<3>(g.uv[c], g.z[c], i & 1, (i >> 1) & 1,
+                                                    (i >> 2) & 1);
     }
-    return geometry::BoxProjector::FromCorners<3>(g.uv[c], g.z[c], i & 1, (i >> 1) & 1,
-                                                  (i >> 2) & 1);
   }
 
   // Whether camera c's verdict on the box with footprint fp may have changed
@@ -389,7 +393,8 @@ class Octree::Updater {
       bool sees_foreground = inherited_full;  // Some camera full or mixed in its silhouette.
       for (int m = 0; m < num_mixed && !any_free; ++m) {
         const int c = mixed[m];
-        const geometry::Footprint fp = ChildFootprint(g, c, i);
+        geometry::Footprint fp;
+        ChildFootprint(g, c, i, &fp);
         const ObstacleRelation relation = ((clear >> c) & 1u) != 0 ? ObstacleRelation::kClear
                                           : child_relations != nullptr
                                               ? RelationOf(c, fp, &child_relations[i])
@@ -442,8 +447,12 @@ class Octree::Updater {
     } else {
       box = CellBox(tree_.config_.bounds, cell);
     }
-    auto footprint = [&](int c) {
-      return grid != nullptr ? ChildFootprint(*grid, c, child_index) : FootprintOf(c, box);
+    auto footprint_into = [&](int c, geometry::Footprint* out) {
+      if (grid != nullptr) {
+        ChildFootprint(*grid, c, child_index, out);
+      } else {
+        *out = FootprintOf(c, box);
+      }
     };
     ++k.visited;
     Node node = N(index);  // Copy: worked on here, written back below.
@@ -486,7 +495,9 @@ class Octree::Updater {
           continue;
         }
         bool settled = false;
-        if (!ChangedIn(c, footprint(c), unchanged, since, forced, &settled)) {
+        geometry::Footprint fp;
+        footprint_into(c, &fp);
+        if (!ChangedIn(c, fp, unchanged, since, forced, &settled)) {
           // Other cameras were not checked for changes: their caches may be stale.
           N(index).valid = static_cast<std::uint16_t>(1u << c);
           N(index).flags = 0;  // Up to date, if it was pending.
@@ -503,7 +514,7 @@ class Octree::Updater {
     std::uint32_t unsettled = 0;
     for (int c = 0; c < num_cameras; ++c) {
       if (((inherit >> c) & 1u) != 0) continue;
-      fps[c] = footprint(c);
+      footprint_into(c, &fps[c]);
       if (recompute_all || ((node.valid >> c) & 1u) == 0) {
         recompute |= 1u << c;
         continue;
