@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
   app.add_option("--duration", duration_s,
                  "With --config: stop after this many seconds (0: run until "
                  "SIGTERM or SIGINT)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
   app.set_version_flag("--version", std::string("hullguardd ") + hg::common::Version() + " (" +
                                         hg::common::Commit() + ")");

@@ -49,8 +49,18 @@ bool IsCompleteImage(std::string_view text) {
                                               'N', 'D', 0xAE, 0x42, 0x60, 0x82};
   const std::size_t n = text.size();
   if (n >= sizeof(kPngSignature) && std::memcmp(bytes, kPngSignature, 8) == 0) {
-    return n >= sizeof(kPngSignature) + sizeof(kPngEnd) &&
-           std::memcmp(bytes + n - sizeof(kPngEnd), kPngEnd, sizeof(kPngEnd)) == 0;
+    // Chunk by chunk (length, type, data, CRC) up to a whole IEND chunk;
+    // bytes after it (some tools append some) are no part of the image.
+    std::size_t at = sizeof(kPngSignature);
+    while (n - at >= sizeof(kPngEnd)) {
+      if (std::memcmp(bytes + at, kPngEnd, sizeof(kPngEnd)) == 0) return true;
+      const std::size_t length = (std::size_t{bytes[at]} << 24) |
+                                 (std::size_t{bytes[at + 1]} << 16) |
+                                 (std::size_t{bytes[at + 2]} << 8) | std::size_t{bytes[at + 3]};
+      if (length > n - at - 12) return false;  // Cut inside this chunk.
+      at += 12 + length;
+    }
+    return false;
   }
   if (n >= 2 && bytes[0] == 0xFF && bytes[1] == 0xD8) {
     std::size_t end = n;  // Zero padding after the end marker is harmless.

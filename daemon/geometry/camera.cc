@@ -116,7 +116,11 @@ std::optional<DecomposeResult> DecomposeProjection(const Eigen::Matrix<double, 3
     return fail("P has non-finite entries");
   }
 
-  Eigen::Matrix<double, 3, 4> Ps = P;
+  // P's scale is arbitrary: divided by its largest entry first, so that no
+  // step below (determinant, products) overflows or underflows at any scale.
+  const double largest = P.cwiseAbs().maxCoeff();
+  if (!(largest > 0.0)) return fail("P has rank < 3");
+  Eigen::Matrix<double, 3, 4> Ps = P / largest;
   Eigen::Matrix3d M = Ps.leftCols<3>();
   // Rank test relative to the largest singular value, so that the overall scale of P
   // (which is arbitrary) does not matter.

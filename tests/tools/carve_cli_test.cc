@@ -11,6 +11,8 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "geometry/camera_yaml.h"
 #include "geometry/mesh.h"
@@ -162,7 +164,8 @@ TEST_F(CarveCliTest, QueryClassifiesPointsInOrder) {
   q.precision(17);
   q << inside.x() << " " << inside.y() << " " << inside.z() << "\n";
   // Coordinates are echoed as written: 1.0000000001 must not come back as 1.
-  q << "# a comment\n5 5 5\n\n0.001 0.001 1.999\n  1.0000000001\t0.5   0.5e0 \n";
+  q << "# a comment\n5 5 5  # outside\n\n0.001 0.001 1.999#corner\n"
+    << "  1.0000000001\t0.5   0.5e0 \n";
   q.close();
   // With exact boundaries the octree equals the brute-force oracle cell by cell.
   const ProcessResult r = Hullguard(Base() + " --boundary-coarsening 0 --query " + Path("q.txt"));
@@ -224,6 +227,58 @@ TEST_F(CarveCliTest, ThresholdChoosesForeground) {
   const ProcessResult at_value = Hullguard(base + " --threshold 100");  // Strictly greater.
   ASSERT_EQ(at_value.code, 0) << at_value.err;
   EXPECT_EQ(at_value.out, "1 1 1 free\n");
+}
+
+TEST_F(CarveCliTest, ColourMasksCountTheirBrightestChannel) {
+  // A pure red foreground is dark in grey (76): read by grey value it would
+  // be background and the point free. Its brightest channel makes it foreground.
+  std::ofstream(Path("down.yaml")) << "cameras:\n"
+                                   << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
+  ASSERT_TRUE(cv::imwrite(Path("red.png"), cv::Mat(48, 64, CV_8UC3, cv::Scalar(0, 0, 255))));
+  ASSERT_TRUE(cv::imwrite(Path("black.png"), cv::Mat(48, 64, CV_8UC3, cv::Scalar(0, 0, 0))));
+  // Opaque foreground on a transparent background: refused, whatever its colours.
+  cv::Mat rgba(48, 64, CV_8UC4, cv::Scalar(0, 0, 0, 0));
+  rgba(cv::Rect(16, 12, 32, 24)).setTo(cv::Scalar(0, 0, 0, 255));
+  ASSERT_TRUE(cv::imwrite(Path("alpha.png"), rgba));
+  // Opaque everywhere: the alpha channel changes nothing.
+  ASSERT_TRUE(cv::imwrite(Path("opaque.png"), cv::Mat(48, 64, CV_8UC4, cv::Scalar(0, 255, 0, 255))));
+  std::ofstream(Path("q.txt")) << "1 1 1\n";
+  auto carve = [&](const std::string& mask) {
+    return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
+                     " --bounds 0 0 0 2 2 2 --depth 4 --query " + Path("q.txt"));
+  };
+  const ProcessResult red = carve("red.png");
+  ASSERT_EQ(red.code, 0) << red.err;
+  EXPECT_EQ(red.out, "1 1 1 occupied\n");
+  const ProcessResult black = carve("black.png");
+  ASSERT_EQ(black.code, 0) << black.err;
+  EXPECT_EQ(black.out, "1 1 1 free\n");
+  const ProcessResult opaque = carve("opaque.png");
+  ASSERT_EQ(opaque.code, 0) << opaque.err;
+  EXPECT_EQ(opaque.out, "1 1 1 occupied\n");
+  const ProcessResult alpha = carve("alpha.png");
+  EXPECT_EQ(alpha.code, 2);
+  EXPECT_NE(alpha.err.find("alpha.png: mask has transparent pixels"), std::string::npos)
+      << alpha.err;
+  EXPECT_EQ(alpha.out, "");
+}
+
+TEST_F(CarveCliTest, BytesAfterThePngEndAreIgnored) {
+  // Some tools append bytes after a PNG's IEND chunk: the image is whole.
+  {
+    std::ifstream in(Path("m0.png"), std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(Path("tail.png"), std::ios::binary) << bytes << std::string("\n\0trailer", 9);
+  }
+  std::ofstream(Path("q.txt")) << "1 1 1\n0.5 0.5 0.5\n1.5 1 0.5\n";
+  const std::string rest = Masks().substr(Masks().find(' ', 1)) +
+                           " --bounds 0 0 0 2 2 2 --depth 6 --query " + Path("q.txt");
+  const ProcessResult whole = Hullguard(Base() + " --query " + Path("q.txt"));
+  const ProcessResult tail =
+      Hullguard("carve --cameras " + Path("cams.yaml") + " --masks " + Path("tail.png") + rest);
+  ASSERT_EQ(whole.code, 0) << whole.err;
+  ASSERT_EQ(tail.code, 0) << tail.err;
+  EXPECT_EQ(tail.out, whole.out);
 }
 
 TEST_F(CarveCliTest, ProjectionMatrixCameraCarvesLikeKRt) {
@@ -520,6 +575,13 @@ TEST_F(CarveCliTest, BadInputGetsOneLineAndExitTwo) {
        "cannot open mask: is a folder"},
       {Base() + " --query " + Path(""), "cannot open query file: is a folder"},
       {Base() + " --min-component-m3 nan", "not a finite number"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 2 2 2 --depth abc",
+       "--depth: 'abc' is not an integer"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 2 2 2 --depth 6.5",
+       "--depth: '6.5' is not an integer"},
+      {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 2 2 2 --depth 17",
+       "--depth: '17' is not in 3..16"},
+      {Base() + " --min-component-m3 -1", "--min-component-m3: '-1' must be 0 or more"},
       {"carve" + cams + " --masks" + Masks() + " --bounds 0 0 0 1e300 2 2 --depth 6", "1e6 m"},
   };
   for (const Case& c : cases) {

@@ -342,46 +342,46 @@ void RegisterBench(CLI::App& app, int* exit_code) {
   CLI::App* cmd =
       app.add_subcommand("bench", "Time the engine on a simulated scene, frame by frame");
   cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
-  cmd->add_option("--frames", flags->frames, "Frames to run")->check(CLI::Range(2, 100000));
+  cmd->add_option("--frames", flags->frames, "Frames to run")->check(hg::cli::Range(2, 100000));
   cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
       ->check(hg::cli::kFinite);
   cmd->add_option("--cameras", flags->cameras, "Use only the scene's first N cameras")
-      ->check(CLI::Range(1, 16));
-  cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
-  cmd->add_option("--depth", flags->depth, "Octree depth")->check(CLI::Range(3, 16));
+      ->check(hg::cli::Range(1, 16));
+  cmd->add_option("--threads", flags->threads, "Worker threads")->check(hg::cli::Range(1, 64));
+  cmd->add_option("--depth", flags->depth, "Octree depth")->check(hg::cli::Range(3, 16));
   cmd->add_option("--boundary-coarsening", flags->boundary_coarsening,
                   "Levels above --depth at which static view and obstacle edges stop")
-      ->check(CLI::Range(0, 16));
+      ->check(hg::cli::Range(0, 16));
   cmd->add_option("--settle-level", flags->settle_level,
                   "Stop refining a cell of this level once a leaf in it reads occupied (the "
                   "daemon's publish_depth; 0: off; see octree::OctreeConfig::settle_level)")
-      ->check(CLI::Range(0, 19));
+      ->check(hg::cli::Range(0, 19));
   cmd->add_option("--max-speed", flags->max_speed_mps,
                   "Compensate the scene's capture offsets as the daemon does for people up to "
                   "this fast (m/s; motion.max_speed_mps): the tree then holds the people as "
                   "they were at the latest capture, and is checked against that. 0: off")
-      ->check(CLI::Range(0.0, 100.0));
+      ->check(hg::cli::Range(0.0, 100.0));
   cmd->add_flag("--stamp-at-median", flags->stamp_at_median,
                 "With --max-speed: hold the people as they were at the median capture offset "
                 "instead of the latest (motion.stamp_at_median)");
   cmd->add_option("--key-level", flags->key_level,
                   "With --coarse-first: a pass also stops at this level (the daemon uses its "
                   "tracking voxel's level; docs/reconstruction.md)")
-      ->check(CLI::Range(0, 16));
+      ->check(hg::cli::Range(0, 16));
   cmd->add_option("--coarse-first", flags->coarse_first_depth,
                   "Bring each update up to date down to this level first, then refine "
                   "(0: off; see octree.coarse_first_depth in docs/configuration.md)")
-      ->check(CLI::Range(0, 16));
+      ->check(hg::cli::Range(0, 16));
   cmd->add_option("--deadline-ms", flags->deadline_ms,
                   "Abort each octree update this long after it starts (0: no deadline)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
   cmd->add_option("--baseline", flags->baseline,
                   "dense:R also times a dense per-voxel carve at R^3 on the same frames; "
                   "open3d:R Open3D's VoxelGrid::CarveSilhouette (builds with HG_WITH_OPEN3D)");
   cmd->add_option("--truth-points", flags->truth_points,
                   "Points sampled inside each person per frame for the ground-truth check")
-      ->check(CLI::Range(0, 1000000));
+      ->check(hg::cli::Range(0, 1000000));
   cmd->add_flag("--leaf-changes", flags->leaf_changes,
                 "Also count the leaves each incremental update wrote (a new cell or state: "
                 "the least any incremental update must do); slow, outside the timings");

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "common/cli_checks.h"
@@ -86,22 +87,50 @@ common::ImageU8 ReadMask(const std::string& path) {
   if (common::IsCompleteImage(bytes)) {
     const SilencedStderr quiet;
     try {
-      // ANYDEPTH: a 16-bit mask stays 16-bit and is refused below; a plain
-      // GRAYSCALE decode would scale 255 to 0, foreground to background.
+      // UNCHANGED: a 16-bit mask stays 16-bit and is refused below (a plain
+      // GRAYSCALE decode would scale 255 to 0, foreground to background), and
+      // colour and alpha arrive as they are, to be read conservatively below.
       const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1,
                             const_cast<char*>(bytes.data()));
-      m = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+      m = cv::imdecode(encoded, cv::IMREAD_UNCHANGED);
     } catch (const cv::Exception&) {
       m = cv::Mat();
     }
   }
-  if (m.empty() || m.type() != CV_8UC1) {
+  if (m.empty() || m.depth() != CV_8U) {
     throw common::ConfigError(
         path + ": not a readable 8-bit image (16-bit, truncated, damaged or not an image)");
   }
-  common::ImageU8 out(m.cols, m.rows);
-  for (int v = 0; v < m.rows; ++v) {
-    std::memcpy(&out.At(0, v), m.ptr<std::uint8_t>(v), static_cast<std::size_t>(m.cols));
+  const int channels = m.channels();
+  if (channels == 2 || channels == 4) {
+    // Transparency would be dropped: a mask drawn as opaque foreground on a
+    // transparent background would read as all background, the person free.
+    std::vector<cv::Mat> planes;
+    cv::split(m, planes);
+    double lowest_alpha = 0.0;
+    cv::minMaxLoc(planes.back(), &lowest_alpha);
+    if (lowest_alpha < 255.0) {
+      throw common::ConfigError(path +
+                                ": mask has transparent pixels (an alpha channel); masks are read "
+                                "by their grey value, so save it without transparency");
+    }
+  }
+  // Colour: a pixel's value is its brightest channel, never less than its grey
+  // value, so that a foreground drawn in any colour counts (a pure red one
+  // would be dark in grey).
+  cv::Mat value;
+  if (channels == 1) {
+    value = m;
+  } else {
+    std::vector<cv::Mat> planes;
+    cv::split(m, planes);
+    value = planes[0];
+    const int colours = channels == 2 ? 1 : 3;
+    for (int i = 1; i < colours; ++i) cv::max(value, planes[static_cast<std::size_t>(i)], value);
+  }
+  common::ImageU8 out(value.cols, value.rows);
+  for (int v = 0; v < value.rows; ++v) {
+    std::memcpy(&out.At(0, v), value.ptr<std::uint8_t>(v), static_cast<std::size_t>(value.cols));
   }
   return out;
 }
@@ -122,7 +151,8 @@ std::vector<QueryPoint> ReadQueryPoints(const std::string& path) {
     ++number;
     const auto first = line.find_first_not_of(" \t\r");
     if (first == std::string::npos || line[first] == '#') continue;
-    std::istringstream ss(line);
+    // A comment may also follow the coordinates.
+    std::istringstream ss(line.substr(0, line.find('#')));
     std::string token[3];
     std::string rest;
     QueryPoint q;
@@ -247,18 +277,18 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
       ->check(hg::cli::kFinite);
   cmd->add_option("--depth", flags->depth, "Octree depth; finest cell = bounds / 2^depth")
       ->required()
-      ->check(CLI::Range(3, 16));
-  cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
+      ->check(hg::cli::Range(3, 16));
+  cmd->add_option("--threads", flags->threads, "Worker threads")->check(hg::cli::Range(1, 64));
   cmd->add_option("--boundary-coarsening", flags->boundary_coarsening,
                   "Levels above --depth at which the static edges of the cameras' views and of "
                   "obstacles stop (0: exact)")
-      ->check(CLI::Range(0, 16));
+      ->check(hg::cli::Range(0, 16));
   cmd->add_option("--max-nodes", flags->max_nodes,
                   "Octree nodes reserved (24 bytes each; 0: the full tree of the depth, at most "
                   "8 Mi). Where they run out, cells are left occupied, and a warning says so")
-      ->check(CLI::Range(std::int64_t{0}, std::int64_t{500'000'000}));
+      ->check(hg::cli::Range(std::int64_t{0}, std::int64_t{500'000'000}));
   cmd->add_option("--threshold", flags->threshold, "Foreground iff grey value > T")
-      ->check(CLI::Range(0, 254));
+      ->check(hg::cli::Range(0, 254));
   cmd->add_option("--obstacles", flags->obstacles, "Static obstacles as an OBJ or STL mesh");
   cmd->add_option("--query", flags->query, "Text file of 'x y z' lines to classify");
   cmd->add_option(
@@ -270,7 +300,7 @@ void RegisterCarve(CLI::App& app, int* exit_code) {
   cmd->add_option("--min-component-m3", flags->min_component_m3,
                   "Knowledge filter: report occupied components below this volume as free "
                   "in --query (off: 0)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
   cmd->callback([flags, exit_code] { *exit_code = RunCarve(*flags); });
 }

@@ -149,13 +149,14 @@ void RegisterDemo(CLI::App& app, int* exit_code) {
       app.add_subcommand("demo", "Animate a simulated cell, carve every frame, write pictures");
   cmd->add_option("--scene", flags->scene, "Scene YAML")->capture_default_str();
   cmd->add_option("--out", flags->out, "Output directory")->capture_default_str();
-  cmd->add_option("--frames", flags->frames, "Frames to simulate")->check(CLI::Range(1, 100000));
+  cmd->add_option("--frames", flags->frames, "Frames to simulate")
+      ->check(hg::cli::Range(1, 100000));
   cmd->add_option("--every", flags->every, "Write a snapshot every N frames")
-      ->check(CLI::Range(1, 100000));
+      ->check(hg::cli::Range(1, 100000));
   cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
       ->check(hg::cli::kFinite);
-  cmd->add_option("--depth", flags->depth, "Octree depth")->check(CLI::Range(3, 12));
-  cmd->add_option("--threads", flags->threads, "Worker threads")->check(CLI::Range(1, 64));
+  cmd->add_option("--depth", flags->depth, "Octree depth")->check(hg::cli::Range(3, 12));
+  cmd->add_option("--threads", flags->threads, "Worker threads")->check(hg::cli::Range(1, 64));
   cmd->callback([flags, exit_code] { *exit_code = RunDemo(*flags); });
 }
 

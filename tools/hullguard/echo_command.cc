@@ -480,16 +480,16 @@ void RegisterEcho(CLI::App& app, int* exit_code) {
   auto flags = std::make_shared<EchoFlags>();
   CLI::App* cmd = app.add_subcommand(
       "echo", "Print the occupancy, status and tracks samples hullguardd publishes over DDS");
-  cmd->add_option("--domain", flags->domain, "DDS domain id")->check(CLI::Range(0, 232));
+  cmd->add_option("--domain", flags->domain, "DDS domain id")->check(hg::cli::Range(0, 232));
   cmd->add_option("--prefix", flags->prefix, "Topic prefix (dds.topic_prefix of the daemon)");
   cmd->add_option("--count", flags->count, "Exit after this many occupancy samples (0: never)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(hg::cli::kNonNegative);
   cmd->add_option("--timeout", flags->timeout_s, "Give up after this many seconds (0: never)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
   cmd->add_option("--deadline-ms", flags->deadline_ms,
                   "Requested deadline (ms); must be >= the daemon's two cycles to match")
-      ->check(CLI::Range(1.0, 3.6e6))
+      ->check(hg::cli::Range(1.0, 3.6e6))
       ->check(hg::cli::kFinite);
   cmd->add_flag("--json", flags->json, "One JSON object per line");
   cmd->add_option("--topic", flags->topic, "Print samples of this topic only")

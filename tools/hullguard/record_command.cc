@@ -223,19 +223,19 @@ void RegisterRecord(CLI::App& app, int* exit_code) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--out", flags->out, "Recording folder to create (docs/cameras.md)")->required();
   cmd->add_option("--seconds", flags->seconds, "Stop after this long (0: at SIGINT or SIGTERM)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
   cmd->add_option("--queue", flags->queue,
                   "Frames buffered per camera between capture and writing; a frame arriving "
                   "with the queue full is lost and counted")
-      ->check(CLI::Range(1, 100000));
+      ->check(hg::cli::Range(1, 100000));
   cmd->add_option("--format", flags->format,
                   "Frame files: png (small, slow for camera images), pnm (PGM/PPM, disk speed) "
                   "or auto (png for masks, pnm for camera images)")
       ->check(CLI::IsMember({"auto", "png", "pnm"}));
   cmd->add_option("--writers", flags->writers,
                   "Writer (PNG encoding) threads; 0: one per camera, at most one per core")
-      ->check(CLI::Range(0, 256));
+      ->check(hg::cli::Range(0, 256));
   cmd->callback([flags, exit_code] {
     try {
       *exit_code = RunRecord(*flags);

@@ -20,6 +20,7 @@
 #include "app/config.h"
 #include "app/pipeline_setup.h"
 #include "capture/replay_source.h"
+#include "common/cli_checks.h"
 #include "common/config_error.h"
 #include "hullguard/commands.h"
 #include "hullguard/snapshot_picture.h"
@@ -421,10 +422,10 @@ void RegisterReplay(CLI::App& app, int* exit_code) {
       ->required()
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--threads", flags->threads, "Octree threads (0: the config's)")
-      ->check(CLI::Range(0, 64));
+      ->check(hg::cli::Range(0, 64));
   cmd->add_option("--frames", flags->frames,
                   "Replay at most this many frame sets, or cycles of a recorded recording (0: all)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(hg::cli::kNonNegative);
   cmd->add_flag("--digest", flags->digest, "Print a digest of the output stream");
   cmd->add_option("--expect", flags->expect, "Fail (exit 1) unless the digest equals this");
   cmd->add_option("--snapshot", flags->snapshot, "Write a picture of the last cycle (PNG)");

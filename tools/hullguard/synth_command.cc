@@ -192,7 +192,7 @@ void RegisterSynth(CLI::App& app, int* exit_code) {
   CLI::App* cmd = app.add_subcommand(
       "synth", "Render a scene: masks, colour frames, cameras, obstacles, ground truth");
   cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
-  cmd->add_option("--frames", flags->frames, "Number of frames")->check(CLI::Range(1, 1000000));
+  cmd->add_option("--frames", flags->frames, "Number of frames")->check(hg::cli::Range(1, 1000000));
   cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
       ->check(hg::cli::kFinite);
   cmd->add_option("--out", flags->out,
@@ -201,7 +201,7 @@ void RegisterSynth(CLI::App& app, int* exit_code) {
   cmd->add_flag("--colour", flags->colour, "Write colour frames");
   cmd->add_flag("--masks", flags->masks,
                 "Write ground-truth masks (the default unless only --colour is given)");
-  cmd->add_option("--threads", flags->threads, "Rendering threads")->check(CLI::Range(1, 64));
+  cmd->add_option("--threads", flags->threads, "Rendering threads")->check(hg::cli::Range(1, 64));
   cmd->callback([flags, exit_code] { *exit_code = RunSynth(*flags); });
 }
 

@@ -571,32 +571,32 @@ void RegisterTrackEval(CLI::App& app, int* exit_code) {
   cmd->add_option("--scene", flags->scene, "Scene YAML (docs/scenes.md)")->required();
   cmd->add_option("--frames", flags->frames,
                   "Frames to run (default: until every script has ended, plus 1 s)")
-      ->check(CLI::Range(2, 1000000));
+      ->check(hg::cli::Range(2, 1000000));
   cmd->add_option("--start", flags->start_s, "Scene time of the first frame (s)")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
-  cmd->add_option("--depth", flags->depth, "Octree depth")->check(CLI::Range(3, 12));
+  cmd->add_option("--depth", flags->depth, "Octree depth")->check(hg::cli::Range(3, 12));
   cmd->add_option("--publish-depth", flags->publish_depth,
                   "Depth of the published occupancy grid the tracker reads")
-      ->check(CLI::Range(3, 10));
+      ->check(hg::cli::Range(3, 10));
   cmd->add_option("--threads", flags->threads, "Octree worker threads (the tracker uses one)")
-      ->check(CLI::Range(1, 64));
+      ->check(hg::cli::Range(1, 64));
   cmd->add_option("--threshold", flags->threshold_m,
                   "CLEAR MOT match threshold between track and body centre (m)")
-      ->check(CLI::PositiveNumber)
+      ->check(hg::cli::kPositive)
       ->check(hg::cli::kFinite);
   cmd->add_option("--deadline-ms", flags->deadline_ms,
                   "Abort each octree update this long after it starts, as the daemon does "
                   "(0: none); updates left unrefined are not tracked")
-      ->check(CLI::NonNegativeNumber)
+      ->check(hg::cli::kNonNegative)
       ->check(hg::cli::kFinite);
   cmd->add_option("--coarse-first", flags->coarse_first_depth,
                   "octree.coarse_first_depth (0: off; docs/reconstruction.md)")
-      ->check(CLI::Range(0, 16));
+      ->check(hg::cli::Range(0, 16));
   cmd->add_option("--particles", flags->particles, "Particles per person")
-      ->check(CLI::Range(1, 100000));
+      ->check(hg::cli::Range(1, 100000));
   cmd->add_option("--voxel", flags->voxel_m, "Tracking voxel edge (m)")
-      ->check(CLI::Range(0.01, 0.5))
+      ->check(hg::cli::Range(0.01, 0.5))
       ->check(hg::cli::kFinite);
   cmd->add_flag("--json", flags->json, "Print one JSON object");
   cmd->add_option("--plot", flags->plot,
