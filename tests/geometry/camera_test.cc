@@ -139,8 +139,7 @@ TEST(DecomposeProjectionTest, RecoversRandomCamerasAtAnyScaleAndSign) {
     // Every fifth trial at an extreme scale (1e-300 or 1e300 times): products
     // such as the determinant of P's left block over- or underflow there.
     const double magnitude = trial % 5 == 4 ? (trial % 10 == 4 ? 1e-300 : 1e300) : 1.0;
-    const double scale =
-        (trial % 3 == 0 ? -1.0 : 1.0) * magnitude * std::pow(10.0, log_scale(rng));
+    const double scale = (trial % 3 == 0 ? -1.0 : 1.0) * magnitude * std::pow(10.0, log_scale(rng));
     Eigen::Matrix<double, 3, 4> Rt;
     Rt << R, t;
     const Eigen::Matrix<double, 3, 4> P = scale * K * Rt;
