@@ -241,7 +241,8 @@ TEST_F(CarveCliTest, ColourMasksCountTheirBrightestChannel) {
   rgba(cv::Rect(16, 12, 32, 24)).setTo(cv::Scalar(0, 0, 0, 255));
   ASSERT_TRUE(cv::imwrite(Path("alpha.png"), rgba));
   // Opaque everywhere: the alpha channel changes nothing.
-  ASSERT_TRUE(cv::imwrite(Path("opaque.png"), cv::Mat(48, 64, CV_8UC4, cv::Scalar(0, 255, 0, 255))));
+  ASSERT_TRUE(
+      cv::imwrite(Path("opaque.png"), cv::Mat(48, 64, CV_8UC4, cv::Scalar(0, 255, 0, 255))));
   std::ofstream(Path("q.txt")) << "1 1 1\n";
   auto carve = [&](const std::string& mask) {
     return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
