@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <limits>
@@ -14,6 +15,7 @@
 #include <tuple>
 #include <type_traits>
 #include <utility>
+#include <variant>
 
 #include <yaml-cpp/yaml.h>
 
@@ -28,6 +30,7 @@
 #include "geometry/camera_yaml.h"
 #include "geometry/mesh.h"
 #include "octree/octree.h"
+#include "sim/body.h"
 #include "sim/scene.h"
 
 namespace hg::app {
@@ -195,7 +198,8 @@ const Field<MotionConfig> kMotionFields[] = {
                 "only where it saw background, in its view and in front of the obstacles, "
                 "everywhere within the distance covered meanwhile. A part faster than this may "
                 "reach out of the occupancy by the excess times the skew. 0 assumes synchronised "
-                "cameras.",
+                "cameras. With `sim` cameras, hullguardd warns at start (and --check-config) when "
+                "a person of the scene moves a part faster.",
      .limits = {0, 20}},
     {.key = "min_camera_distance_m",
      .member = &MotionConfig::min_camera_distance_m,
@@ -846,7 +850,9 @@ class Reader {
     const fs::path resolved = (base_dir_ / *text).lexically_normal();
     std::error_code ec;
     if (check == PathCheck::kFile && !fs::is_regular_file(resolved, ec)) {
-      Error(item.line, item.path, "no such file '" + resolved.string() + "'");
+      Error(item.line, item.path,
+            (fs::is_directory(resolved, ec) ? "a folder, not a file: '" : "no such file '") +
+                resolved.string() + "'");
       return std::nullopt;
     }
     if (check == PathCheck::kDirectory && !fs::is_directory(resolved, ec)) {
@@ -1507,7 +1513,8 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   const Entries sections = r.Map(root_item, known);
   for (const Section& s : kSections) {
     if (s.required && sections.count(s.key) == 0) {
-      r.Error(0, "", std::string("missing section '") + s.key + "'");
+      // Said at the top of the file, where it would go.
+      r.Error(common::YamlLine(root), "", std::string("missing section '") + s.key + "'");
     }
   }
 
@@ -1563,6 +1570,7 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   const bool timing_read = r.error_count() == errors_before_timing;
   ReadSection<ThreadsConfig>(r, sections, "threads", kThreadsFields, &config.threads);
   ReadSection<MotionConfig>(r, sections, "motion", kMotionFields, &config.motion);
+  config.max_speed_line = key_line("motion", "max_speed_mps");
   if (const int line = key_line("motion", "min_camera_distance_m"); line != 0) {
     config.notices.emplace_back(
         ConfigError::At(r.file(), line,
@@ -1706,6 +1714,32 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
 
   r.ThrowIfErrors();
   return config;
+}
+
+std::vector<std::string> SimSpeedNotices(const Config& config) {
+  std::set<std::string> scenes;
+  for (const CameraConfig& camera : config.cameras) {
+    if (const auto* sim = std::get_if<SimSourceConfig>(&camera.source)) scenes.insert(sim->scene);
+  }
+  std::vector<std::string> notices;
+  for (const std::string& path : scenes) {
+    const sim::Scene scene = sim::LoadScene(path);
+    double fastest = 0.0;
+    for (const sim::Person& person : scene.people) {
+      double end_s = 0.0;
+      for (const sim::Action& a : person.actions) end_s = std::max(end_s, a.start_s + a.duration_s);
+      fastest = std::max(fastest, sim::FastestPartSpeed(person, 0.0, end_s + 1.0));
+    }
+    if (fastest <= config.motion.max_speed_mps) continue;
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "motion.max_speed_mps: %.2f m/s, but a person of scene '%s' moves a part at up "
+                  "to %.2f m/s: a camera's frame of another instant may certify free what that "
+                  "part reached meanwhile; raise it",
+                  config.motion.max_speed_mps, path.c_str(), fastest);
+    notices.emplace_back(ConfigError::At(config.source_file, config.max_speed_line, text).what());
+  }
+  return notices;
 }
 
 Config LoadConfig(const std::string& path) {

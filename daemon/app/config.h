@@ -227,6 +227,8 @@ struct Config {
   /// "file:line: key: note" each: hullguardd prints them on stderr before it
   /// starts (or checks) the config.
   std::vector<std::string> notices;
+  /// Line of motion.max_speed_mps in source_file; 0 when not given.
+  int max_speed_line = 0;
 };
 
 /// Reads and validates a config file. Relative paths in it are resolved against
@@ -240,6 +242,15 @@ struct Config {
 /// @throws common::ConfigError as LoadConfig.
 [[nodiscard]] Config ParseConfig(const std::string& text, const std::string& file,
                                  const std::string& base_dir);
+
+/// For every scene of the config's `sim` cameras whose people move faster
+/// anywhere (a foot in swing, a hand in a reach; sampled every 2 ms over the
+/// scene's script) than motion.max_speed_mps: a notice "file:line:
+/// motion.max_speed_mps: ...". Frames of other instants then certify free
+/// space a limb can reach meanwhile. Loads the scenes and samples their
+/// scripts (about a second for the paper cell): hullguardd calls it, once,
+/// not LoadConfig.
+[[nodiscard]] std::vector<std::string> SimSpeedNotices(const Config& config);
 
 /// "4 cameras (4 sim), depth 9, 30 Hz": a one-line summary for --check-config.
 [[nodiscard]] std::string Summary(const Config& config);

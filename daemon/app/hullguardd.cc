@@ -75,6 +75,14 @@ int main(int argc, char** argv) {
     return kExitBadConfig;
   }
   for (const std::string& notice : config.notices) std::cerr << notice << '\n';
+  try {
+    for (const std::string& notice : hg::app::SimSpeedNotices(config)) {
+      std::cerr << notice << '\n';
+    }
+  } catch (const std::exception& e) {
+    // The scenes loaded once already (LoadConfig); a notice is no reason to stop.
+    std::cerr << path << ": speed of the simulated people not checked: " << e.what() << '\n';
+  }
   if (!check_path.empty()) {
     std::cout << "config OK: " << hg::app::Summary(config) << '\n';
     return 0;

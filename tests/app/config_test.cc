@@ -326,6 +326,25 @@ TEST(ConfigTest, ShippedConfigsBoundTheSpeedOfTheirPeople) {
   EXPECT_GE(checked, 4);
 }
 
+// hullguardd warns when a sim scene's people outrun motion.max_speed_mps.
+TEST(ConfigTest, SimSpeedNoticesNameTheKeyAndTheScene) {
+  const Config shipped = LoadConfig(kConfigDir + "/demo.yaml");
+  EXPECT_TRUE(SimSpeedNotices(shipped).empty());
+  std::string text = ReadFile(kConfigDir + "/demo.yaml");
+  ASSERT_EQ(text.find("motion:"), std::string::npos);
+  if (!text.empty() && text.back() != '\n') text += '\n';
+  const int line = 2 + static_cast<int>(std::count(text.begin(), text.end(), '\n'));
+  text += "motion:\n  max_speed_mps: 3.0\n";
+  const Config slow = ParseConfig(text, "slow.yaml", kConfigDir);
+  const std::vector<std::string> notices = SimSpeedNotices(slow);
+  ASSERT_EQ(notices.size(), 1u);
+  EXPECT_EQ(
+      notices[0].rfind("slow.yaml:" + std::to_string(line) + ": motion.max_speed_mps: 3.00 m/s", 0),
+      0u)
+      << notices[0];
+  EXPECT_NE(notices[0].find("demo_cell.yaml"), std::string::npos) << notices[0];
+}
+
 // The coarse passes stop at the level whose cells are no larger than the
 // tracking voxel, so that an aborted cycle can still start tracks.
 TEST(ConfigTest, OctreeKeyLevelIsTheTrackingVoxel) {
@@ -376,6 +395,8 @@ const Mistake kMistakes[] = {
      "unknown source type 'usb' (expected sim, replay, aravis or v4l2)"},
     {"scene: scenes/demo_cell.yaml", "scene: scenes/nope.yaml", 13, "cameras[0].source.scene",
      "no such file"},
+    {"scene: scenes/demo_cell.yaml", "scene: scenes", 13, "cameras[0].source.scene",
+     "a folder, not a file"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, camera: cam9}", 13,
      "cameras[0].source.camera", "has no camera 'cam9'"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, device: x}", 13,
@@ -492,8 +513,8 @@ TEST(ConfigTest, MoreCamerasThanOneOctreeFusesAreRefused) {
 
 TEST(ConfigTest, StructuralMistakes) {
   EXPECT_EQ(ErrorOf(""), "t.yaml: expected a map with the config sections (cell, cameras, ...)");
-  EXPECT_NE(ErrorOf("cell: {bounds: {min: [0, 0, 0], max: [1, 1, 1]}}\n")
-                .find("t.yaml: missing section 'cameras'"),
+  EXPECT_NE(ErrorOf("# A comment first.\ncell: {bounds: {min: [0, 0, 0], max: [1, 1, 1]}}\n")
+                .find("t.yaml:2: missing section 'cameras'"),
             std::string::npos);
   EXPECT_NE(ErrorOf(Replace(kMinimal, "cameras:\n", "cameras: []\nx:\n"))
                 .find("t.yaml:3: cameras: expected a non-empty list"),
