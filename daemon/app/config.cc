@@ -583,11 +583,11 @@ const Field<TrackingConfig> kTrackingFields[] = {
      .limits = {0, kInf}},
     {.key = "birth_max_skew_ms",
      .member = &TrackingConfig::birth_max_skew_ms,
-     .meaning =
-         "Tracks start only from a whole cycle: every camera ok, the update refined to "
-         "the tracking voxel, and frames captured at most this far apart (the cameras "
-         "of other instants certify less free, by the motion meanwhile, which leaves "
-         "person-sized blobs where nobody is). Tracks follow their people through every cycle.",
+     .meaning = "Tracks start only from a whole cycle: every camera ok, the update refined to "
+                "the tracking voxel, and frames captured at most this far apart, with no "
+                "margin still held from a wider gap (the cameras of other instants certify less "
+                "free, by the motion meanwhile, which leaves person-sized blobs where nobody "
+                "is). Tracks follow their people through every cycle.",
      .limits = {0, kInf}},
     {.key = "death_timeout_s",
      .member = &TrackingConfig::death_timeout_s,

@@ -404,6 +404,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
     stamp = *middle;
   }
   std::int64_t oldest_used = newest_stamp;
+  health.margin_skew_ms = 0.0;
   for (std::size_t i = 0; i < cameras_.size(); ++i) {
     CameraRuntime& c = *cameras_[i];
     const bool live = quadtree_ptrs_[i] != nullptr;
@@ -416,6 +417,11 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       if (margin >= c.margin_m || now_ns >= c.margin_held_until_ns) {
         c.margin_m = margin;
         c.margin_held_until_ns = now_ns + kMarginHoldNs;
+      }
+      // What the margin stands for (rounded up): the gap it covers.
+      if (options_.max_speed_mps > 0.0) {
+        health.margin_skew_ms =
+            std::max(health.margin_skew_ms, c.margin_m / options_.max_speed_mps * 1e3);
       }
       if (c.fresh) {
         c.quadtree.Build(c.current->mask.View(), 127);

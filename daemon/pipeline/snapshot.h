@@ -3,6 +3,7 @@
 /// What one fusion cycle hands to its consumers: an immutable occupancy
 /// snapshot and the pipeline's health. Publishers read these, never the octree.
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdint>
@@ -52,7 +53,12 @@ struct PipelineHealth {
   std::vector<CameraHealth> cameras;
   double silhouette_ms = 0.0;  ///< Capture stamp -> quadtree built, slowest camera this cycle.
   double skew_ms = 0.0;        ///< Newest minus oldest capture time of the frames used.
-  double octree_ms = 0.0;      ///< Last octree update.
+  /// The widest capture gap the live cameras' margins stand for (ms; margin
+  /// over max_speed_mps, so rounded up as the margins are): a margin is
+  /// raised at once and lowered only after a hold, so after a late frame it
+  /// stands for a wider gap than this cycle's skew for a while.
+  double margin_skew_ms = 0.0;
+  double octree_ms = 0.0;  ///< Last octree update.
   /// Nodes the last update left occupied unsplit: the octree's node store
   /// (octree.max_nodes) was full. 0 normally; the status is degraded otherwise.
   std::int64_t unsplit_nodes = 0;
@@ -154,7 +160,8 @@ struct OccupancySnapshot {
 /// The cameras' part of it: every camera ok and none learning, frames within
 /// max_skew_ms.
 [[nodiscard]] inline bool CamerasWholeForBirths(const OccupancySnapshot& s, double max_skew_ms) {
-  if (s.health.skew_ms > max_skew_ms) return false;
+  // The margins still held from a wider gap fatten the cones as that gap did.
+  if (std::max(s.health.skew_ms, s.health.margin_skew_ms) > max_skew_ms) return false;
   for (const CameraHealth& c : s.health.cameras) {
     if (c.state != CameraState::kOk || c.learning) return false;
   }

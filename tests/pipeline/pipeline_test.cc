@@ -369,6 +369,9 @@ TEST(PipelineTest, CaptureSkewIsCompensated) {
         for (const CameraHealth& h : s->health.cameras) widest = std::max(widest, h.margin_m);
         EXPECT_GE(widest + 1e-9,
                   max_speed_mps * s->health.skew_ms * 1e-3 * (stamp_at_median ? 0.5 : 1.0));
+        // The gap the widest margin stands for, which births check.
+        EXPECT_NEAR(s->health.margin_skew_ms,
+                    max_speed_mps > 0.0 ? widest / max_speed_mps * 1e3 : 0.0, 1e-9);
         ++snapshots;
       }
       std::this_thread::sleep_for(5ms);

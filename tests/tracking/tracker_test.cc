@@ -491,7 +491,8 @@ std::vector<pipeline::GridRun> BlobRuns(const Ellipsoid& blob) {
 
 // Births wait for a whole snapshot: a person-sized blob in a cycle with a
 // stale camera, with a camera still learning its background, with frames
-// captured too far apart, or from an update aborted above the tracking
+// captured too far apart (or margins still held from such frames), or from
+// an update aborted above the tracking
 // voxel starts nothing; the same blob in a whole
 // cycle starts a track, which then follows its person through such cycles.
 TEST(TrackerTest, BirthsWaitForAWholeCycle) {
@@ -509,6 +510,7 @@ TEST(TrackerTest, BirthsWaitForAWholeCycle) {
     snap.complete = true;
     snap.refined_cell_m = 4.0 / 128;
     snap.health.skew_ms = 0.0;
+    snap.health.margin_skew_ms = 0.0;
     snap.health.cameras[1].state = pipeline::CameraState::kOk;
     snap.health.cameras[1].learning = false;
     spoil();
@@ -518,7 +520,10 @@ TEST(TrackerTest, BirthsWaitForAWholeCycle) {
   };
   for (int k = 0; k < 10; ++k) {
     step([&] {
-      switch (k % 4) {
+      switch (k % 5) {
+        case 4:  // Frames of one instant, but margins still held from a late frame.
+          snap.health.margin_skew_ms = 33.0;
+          break;
         case 0:
           snap.health.cameras[1].state = pipeline::CameraState::kStale;
           break;
