@@ -2,8 +2,10 @@
 // sample, plus a line whenever a requested deadline is missed (docs/dds.md).
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <deque>
 #include <memory>
@@ -147,9 +149,14 @@ void PrintLatency(const EchoRecord& r, bool json) {
 constexpr dds_attach_t kOccupancyToken = 1;
 constexpr dds_attach_t kStatusToken = 2;
 constexpr dds_attach_t kTracksToken = 3;
-constexpr std::uint32_t kStatusMask = DDS_DATA_AVAILABLE_STATUS |
-                                      DDS_REQUESTED_DEADLINE_MISSED_STATUS |
-                                      DDS_LIVELINESS_CHANGED_STATUS;
+constexpr std::uint32_t kStatusMask =
+    DDS_DATA_AVAILABLE_STATUS | DDS_REQUESTED_DEADLINE_MISSED_STATUS |
+    DDS_LIVELINESS_CHANGED_STATUS | DDS_REQUESTED_INCOMPATIBLE_QOS_STATUS;
+
+// SIGINT or SIGTERM: stop waiting, then summarise (and write the snapshot)
+// as at the end of --count or --timeout.
+std::atomic<bool> g_interrupted{false};
+extern "C" void OnInterrupt(int /*signal*/) { g_interrupted.store(true); }
 
 const char* CameraStateName(std::uint8_t state) {
   switch (state) {
@@ -238,19 +245,29 @@ void PrintStatus(const hullguard_Status& s, bool json) {
     if (json) {
       std::snprintf(buf, sizeof(buf), "%s{\"name\": ", i == 0 ? "" : ", ");
       cameras += buf + JsonString(c.name);
-      std::snprintf(buf, sizeof(buf),
-                    ", \"state\": \"%s\", \"fps\": %.2f, \"fault\": \"%s\", \"completed\": %llu, "
-                    "\"failed\": %llu, \"underruns\": %llu, \"resends\": %llu, \"margin_m\": %.3f}",
-                    CameraStateName(c.state), c.fps, FaultName(c.fault),
-                    static_cast<unsigned long long>(c.completed),
-                    static_cast<unsigned long long>(c.failed),
-                    static_cast<unsigned long long>(c.underruns),
-                    static_cast<unsigned long long>(c.resends), c.margin_m);
+      std::snprintf(
+          buf, sizeof(buf),
+          ", \"state\": \"%s\", \"fps\": %.2f, \"frame_age_ms\": %.1f, \"frames\": %llu, "
+          "\"drops\": %llu, \"corrupt\": %llu, \"fault\": \"%s\", \"completed\": %llu, "
+          "\"failed\": %llu, \"underruns\": %llu, \"resends\": %llu, \"margin_m\": %.3f}",
+          CameraStateName(c.state), c.fps, c.frame_age_ms,
+          static_cast<unsigned long long>(c.frames), static_cast<unsigned long long>(c.drops),
+          static_cast<unsigned long long>(c.corrupt), FaultName(c.fault),
+          static_cast<unsigned long long>(c.completed), static_cast<unsigned long long>(c.failed),
+          static_cast<unsigned long long>(c.underruns), static_cast<unsigned long long>(c.resends),
+          c.margin_m);
       cameras += buf;
     } else {
-      std::snprintf(buf, sizeof(buf), ":%s@%.1ffps%s%s", CameraStateName(c.state), c.fps,
-                    c.fault != 0 ? ":" : "", c.fault != 0 ? FaultName(c.fault) : "");
+      std::snprintf(buf, sizeof(buf), ":%s@%.1ffps:age=%.0fms%s%s", CameraStateName(c.state), c.fps,
+                    c.frame_age_ms, c.fault != 0 ? ":" : "",
+                    c.fault != 0 ? FaultName(c.fault) : "");
       cameras += (i == 0 ? "" : " ") + std::string(c.name != nullptr ? c.name : "") + buf;
+      if (c.drops + c.corrupt > 0) {
+        std::snprintf(buf, sizeof(buf), ":drops=%llu,corrupt=%llu",
+                      static_cast<unsigned long long>(c.drops),
+                      static_cast<unsigned long long>(c.corrupt));
+        cameras += buf;
+      }
       if (c.margin_m > 0.0F) {
         std::snprintf(buf, sizeof(buf), ":margin=%.1fcm", c.margin_m * 100.0F);
         cameras += buf;
@@ -353,18 +370,39 @@ struct Stream {
   bool alive = false;
 };
 
-// Reports deadline and liveliness changes of `stream`, once per transition.
-void CheckEvents(Stream& stream, bool json) {
+// Reads (and so resets) the deadline, liveliness and QoS statuses of
+// `stream`, every time the waitset wakes for it: a status left set would wake
+// it again at once, forever. Reports deadline and liveliness changes once per
+// transition when `print`, and a writer whose QoS does not match, on stderr.
+void CheckEvents(Stream& stream, bool json, bool print, double deadline_ms) {
   dds_requested_deadline_missed_status_t missed{};
   if (dds_get_requested_deadline_missed_status(stream.reader.handle(), &missed) == DDS_RETCODE_OK &&
       missed.total_count_change > 0 && !stream.stale) {
     stream.stale = true;
-    PrintEvent(stream.name, "stale", missed.total_count, json);
+    if (print) PrintEvent(stream.name, "stale", missed.total_count, json);
   }
   dds_liveliness_changed_status_t live{};
   if (dds_get_liveliness_changed_status(stream.reader.handle(), &live) == DDS_RETCODE_OK) {
-    if (stream.alive && live.alive_count == 0) PrintEvent(stream.name, "writer lost", 0, json);
+    if (print && stream.alive && live.alive_count == 0) {
+      PrintEvent(stream.name, "writer lost", 0, json);
+    }
     stream.alive = live.alive_count > 0;
+  }
+  dds_requested_incompatible_qos_status_t qos{};
+  if (dds_get_requested_incompatible_qos_status(stream.reader.handle(), &qos) == DDS_RETCODE_OK &&
+      qos.total_count_change > 0) {
+    if (qos.last_policy_id == DDS_DEADLINE_QOS_POLICY_ID) {
+      std::fprintf(stderr,
+                   "hullguard echo: a %s writer offers a longer deadline than --deadline-ms %.0f "
+                   "(a daemon at a low rate_hz): its samples are not received; raise "
+                   "--deadline-ms\n",
+                   stream.name, deadline_ms);
+    } else {
+      std::fprintf(stderr,
+                   "hullguard echo: a %s writer's QoS does not match this reader's (policy %d): "
+                   "its samples are not received\n",
+                   stream.name, static_cast<int>(qos.last_policy_id));
+    }
   }
 }
 
@@ -412,12 +450,30 @@ int RunEcho(const EchoFlags& f) {
   waitset.Attach(status.reader, kStatusToken);
   waitset.Attach(tracks.reader, kTracksToken);
 
-  const auto end = Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                                      std::chrono::duration<double>(f.timeout_s));
+  const auto start = Clock::now();
+  const auto end = start + std::chrono::duration_cast<Clock::duration>(
+                               std::chrono::duration<double>(f.timeout_s));
   int received = 0;
+  bool told_waiting = false;
   EchoRecord record;
-  while (f.count == 0 || received < f.count) {
-    auto wait = std::chrono::nanoseconds(std::chrono::seconds(1));
+  g_interrupted.store(false);
+  struct sigaction action {};
+  action.sa_handler = OnInterrupt;
+  sigemptyset(&action.sa_mask);
+  struct sigaction old_int {
+  }, old_term{};
+  sigaction(SIGINT, &action, &old_int);
+  sigaction(SIGTERM, &action, &old_term);
+  while ((f.count == 0 || received < f.count) && !g_interrupted.load()) {
+    if (received == 0 && !told_waiting && Clock::now() - start > std::chrono::seconds(3)) {
+      told_waiting = true;
+      std::fprintf(stderr,
+                   "hullguard echo: no occupancy sample yet on domain %d, topic %s (is hullguardd "
+                   "running, with this dds.domain_id and topic_prefix?)\n",
+                   f.domain, publish::OccupancyTopicName(f.prefix).c_str());
+    }
+    // Short waits, so that a signal ends the wait promptly.
+    auto wait = std::chrono::nanoseconds(std::chrono::milliseconds(200));
     if (f.timeout_s > 0) {
       const auto left = end - Clock::now();
       if (left <= Clock::duration::zero()) break;
@@ -433,22 +489,24 @@ int RunEcho(const EchoFlags& f) {
                                                    if (Shows(f, "occupancy"))
                                                      PrintOccupancy(sample, json);
                                                  });
-        if (Shows(f, "occupancy")) CheckEvents(occupancy, f.json);
+        CheckEvents(occupancy, f.json, Shows(f, "occupancy"), f.deadline_ms);
       } else if (triggered[i] == kTracksToken) {
         TakeAll<hullguard_Tracks>(tracks, f.json, [&](const hullguard_Tracks& sample, bool json) {
           RecordTracks(sample, &record);
           if (Shows(f, "tracks")) PrintTracks(sample, json);
         });
-        if (Shows(f, "tracks")) CheckEvents(tracks, f.json);
+        CheckEvents(tracks, f.json, Shows(f, "tracks"), f.deadline_ms);
       } else {
         TakeAll<hullguard_Status>(status, f.json, [&](const hullguard_Status& sample, bool json) {
           if (Shows(f, "status")) PrintStatus(sample, json);
         });
-        if (Shows(f, "status")) CheckEvents(status, f.json);
+        CheckEvents(status, f.json, Shows(f, "status"), f.deadline_ms);
       }
     }
     std::fflush(stdout);
   }
+  sigaction(SIGINT, &old_int, nullptr);
+  sigaction(SIGTERM, &old_term, nullptr);
   if (received == 0) {
     std::fprintf(stderr, "hullguard echo: no occupancy sample on domain %d, topic %s\n", f.domain,
                  publish::OccupancyTopicName(f.prefix).c_str());
