@@ -34,11 +34,12 @@ int main(int argc, char** argv) {
                                    "Validate a config file, print a summary and exit");
   auto* docs_opt = app.add_flag("--print-config-docs", print_docs,
                                 "Print the configuration reference (docs/configuration.md)");
-  app.add_option("--duration", duration_s,
-                 "With --config: stop after this many seconds (0: run until "
-                 "SIGTERM or SIGINT)")
-      ->check(hg::cli::kNonNegative)
-      ->check(hg::cli::kFinite);
+  auto* duration_opt = app.add_option("--duration", duration_s,
+                                      "With --config: stop after running this many seconds, "
+                                      "start-up not counted (0: run until "
+                                      "SIGTERM or SIGINT)")
+                           ->check(hg::cli::kNonNegative)
+                           ->check(hg::cli::kFinite);
   app.set_version_flag("--version", std::string("hullguardd ") + hg::common::Version() + " (" +
                                         hg::common::Commit() + ")");
   config_opt->excludes(check_opt)->excludes(docs_opt);
@@ -61,6 +62,7 @@ int main(int argc, char** argv) {
     std::cout << hg::app::ConfigReferenceMarkdown();
     return 0;
   }
+  if (!config_path.empty()) hg::app::InstallStopSignals();
   const std::string& path = check_path.empty() ? config_path : check_path;
   hg::app::Config config;
   try {
@@ -84,7 +86,14 @@ int main(int argc, char** argv) {
     std::cerr << path << ": speed of the simulated people not checked: " << e.what() << '\n';
   }
   if (!check_path.empty()) {
+    if (duration_opt->count() > 0) {
+      std::cerr << "hullguardd: --duration has no effect with --check-config\n";
+    }
     std::cout << "config OK: " << hg::app::Summary(config) << '\n';
+    return 0;
+  }
+  if (hg::app::StopRequested()) {
+    std::cerr << "hullguardd: stopped during start-up\n";
     return 0;
   }
   try {

@@ -166,18 +166,36 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
 
 }  // namespace
 
+void InstallStopSignals() {
+  std::signal(SIGTERM, OnSignal);
+  std::signal(SIGINT, OnSignal);
+  // Also without a black box: SIGUSR1's default action would end the daemon.
+  std::signal(SIGUSR1, OnDumpSignal);
+}
+
+bool StopRequested() { return g_stop.load(); }
+
 int RunPipeline(const Config& config, double duration_s) {
   log::Configure("hullguardd", config.logging.level,
                  config.logging.journald ? log::Sink::kJournal : log::Sink::kStderr);
+  InstallStopSignals();  // Again: RunPipeline may be called without hullguardd's main.
+  // A signal during start-up (which can take seconds: obstacle depth maps,
+  // tracking voxels, the cameras) ends the daemon cleanly between its steps.
+  auto stopped_starting = [] {
+    if (!g_stop.load()) return false;
+    log::Info("stopped during start-up");
+    return true;
+  };
   const pipeline::PipelineOptions options = MakePipelineOptions(config);
   const std::vector<geometry::TriangleMesh> obstacles = LoadObstacles(config);
+  if (stopped_starting()) return 0;
 
-  const auto start = std::chrono::steady_clock::now();
   const capture::SimClock sim_clock = capture::SimClock::Now();
   // The black box's rings are allocated (and touched) before capture starts,
   // and before any camera is opened: what can fail here fails first.
   std::unique_ptr<pipeline::BlackBox> black_box;
   if (config.blackbox.seconds > 0.0) black_box = MakeBlackBox(config);
+  if (stopped_starting()) return 0;
   std::vector<pipeline::PipelineCamera> cameras = MakeCameras(config, sim_clock);
 
   pipeline::Pipeline::Consumer consumer;
@@ -210,6 +228,7 @@ int RunPipeline(const Config& config, double duration_s) {
     log::Warn("built without Cyclone DDS: nothing is published");
   }
 #endif
+  if (stopped_starting()) return 0;
   if (config.tracking.enabled) {
     // Static voxel states from the cameras and obstacles, once, before READY=1.
     const auto build_start = std::chrono::steady_clock::now();
@@ -234,10 +253,7 @@ int RunPipeline(const Config& config, double duration_s) {
   // cycle is published; WATCHDOG=1 only while every stage's heartbeat moves.
   const ServiceNotifier notifier;
   ServiceWatchdog watchdog(heartbeats, notifier);
-  std::signal(SIGTERM, OnSignal);
-  std::signal(SIGINT, OnSignal);
-  // Also without a black box: SIGUSR1's default action would end the daemon.
-  std::signal(SIGUSR1, OnDumpSignal);
+  if (stopped_starting()) return 0;
   if (tracking) tracking->Start();
   if (publish_stage) publish_stage->Start();
   pipeline.Start();
@@ -250,7 +266,9 @@ int RunPipeline(const Config& config, double duration_s) {
   pipeline::DegradedDumpTrigger degraded_trigger(
       std::chrono::duration_cast<std::chrono::steady_clock::duration>(
           std::chrono::duration<double>(config.blackbox.seconds)));
-  auto next_report = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  // --duration counts from here: the time running, start-up not included.
+  const auto start = std::chrono::steady_clock::now();
+  auto next_report = start + std::chrono::seconds(1);
   while (!g_stop.load()) {
     heartbeats.Beat(main_heartbeat);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));

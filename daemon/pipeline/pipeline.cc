@@ -295,7 +295,15 @@ void Pipeline::FusionLoop() {
   std::array<CyclePhase::Duration, CyclePhase::kMaxCameras> ready_before_start{};
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(fusion_heartbeat_);
-    std::this_thread::sleep_until(next);
+    // In slices, so that Stop() ends the wait within one slice at any rate
+    // (a period of a second would otherwise hold it up that long), and no
+    // cycle runs after it (its cameras stopped, it would publish them stale).
+    constexpr auto kStopSlice = std::chrono::milliseconds(20);
+    for (SteadyClock::time_point now = SteadyClock::now();
+         now < next && !stop_.load(std::memory_order_relaxed); now = SteadyClock::now()) {
+      std::this_thread::sleep_until(std::min(next, now + kStopSlice));
+    }
+    if (stop_.load(std::memory_order_relaxed)) break;
     next += period;
     const SteadyClock::time_point cycle_start = SteadyClock::now();
     if (next < cycle_start) {

@@ -376,6 +376,40 @@ TEST_F(DaemonE2E, NotifiesReadyWatchdogAndStoppingAsAService) {
   close(fd);
 }
 
+// SIGTERM ends the daemon cleanly (exit 0, "stopped") within a second also
+// while it starts up (a signal then used to kill it half-built) and at a
+// cycle rate of 1 Hz (its fusion thread used to sleep out the period, and
+// then ran one more cycle with its cameras stopped).
+TEST_F(DaemonE2E, SigtermDuringStartUpAndAtALowRateEndsCleanlyWithinASecond) {
+  {
+    fs::create_directories(dir_ / "early");
+    testing::HullguarddRun daemon(g_daemon, g_source_dir + "/config/demo.yaml", 60.0,
+                                  dir_ / "early");
+    std::this_thread::sleep_for(100ms);  // Start-up (obstacle maps, tracking) takes longer.
+    Clock::duration took{};
+    EXPECT_EQ(daemon.Terminate(1s, &took), 0) << daemon.Log();
+    EXPECT_LT(took, 1s);
+    EXPECT_NE(daemon.Log().find("stopped"), std::string::npos) << daemon.Log();
+  }
+  std::string text = ReadFile(g_source_dir + "/config/demo.yaml");
+  text = Replace(text, "  rate_hz: 30", "  rate_hz: 1");
+  const std::string config = (dir_ / "slow.yaml").string();
+  std::ofstream(config) << text;
+  // The scene and obstacle paths are relative to the config's folder.
+  fs::copy(g_source_dir + "/config/scenes", dir_ / "scenes", fs::copy_options::recursive);
+  fs::copy(g_source_dir + "/config/demo_cell", dir_ / "demo_cell", fs::copy_options::recursive);
+  for (const double after_s : {2.3, 2.8}) {
+    fs::create_directories(dir_ / "slow");
+    testing::HullguarddRun daemon(g_daemon, config, 60.0, dir_ / "slow");
+    std::this_thread::sleep_for(std::chrono::duration<double>(after_s));
+    Clock::duration took{};
+    EXPECT_EQ(daemon.Terminate(1s, &took), 0) << daemon.Log();
+    EXPECT_LT(took, 1s) << "after " << after_s << " s";
+    std::printf("1 Hz, SIGTERM after %.1f s: exit in %.0f ms\n", after_s,
+                std::chrono::duration<double, std::milli>(took).count());
+  }
+}
+
 TEST_F(DaemonE2E, BadConfigExitsTwoNamingKeyAndLine) {
   std::string text = ReadFile(g_source_dir + "/config/demo.yaml");
   text = Replace(text, "  deadline_ms: 25", "  deadline_ms: 25\n  jitter_ms: 3");
