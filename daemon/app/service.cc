@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <cstring>
 #include <utility>
 
 #include <systemd/sd-daemon.h>
@@ -24,7 +25,15 @@ ServiceNotifier::ServiceNotifier() {
 
 bool ServiceNotifier::Send(const char* message) const {
   if (!enabled_) return false;
-  return sd_notify(/*unset_environment=*/0, message) > 0;
+  const int result = sd_notify(/*unset_environment=*/0, message);
+  if (result <= 0 && !failure_logged_->exchange(true)) {
+    // Once: systemd would then never see READY=1 or a watchdog ping.
+    log::Warn(
+        "NOTIFY_SOCKET={} is set but notifying it failed ({}): systemd sees no READY=1, "
+        "STATUS= or watchdog ping",
+        std::getenv("NOTIFY_SOCKET"), result < 0 ? std::strerror(-result) : "no socket");
+  }
+  return result > 0;
 }
 
 bool ServiceNotifier::Ready() const { return Send("READY=1"); }

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -56,6 +57,8 @@ class ServiceNotifier {
 
   bool enabled_ = false;
   std::optional<std::chrono::microseconds> watchdog_interval_;
+  // A failed notification was logged (shared by copies: once per process).
+  std::shared_ptr<std::atomic<bool>> failure_logged_ = std::make_shared<std::atomic<bool>>(false);
 };
 
 /// Feeds the systemd watchdog from the daemon's heartbeats.
