@@ -771,9 +771,12 @@ class Reader {
     }
   }
 
+  // A quoted scalar ("7") is a string in YAML, whatever it spells.
+  static bool Plain(const Item& item) { return item.value.IsScalar() && item.value.Tag() != "!"; }
+
   std::optional<double> Number(const Item& item, const Limits& limits) {
     double value = 0.0;
-    bool ok = item.value.IsScalar();
+    bool ok = Plain(item);
     if (ok) {
       try {
         value = item.value.as<double>();
@@ -790,7 +793,7 @@ class Reader {
 
   std::optional<int> Integer(const Item& item, const Limits& limits) {
     long long value = 0;
-    bool ok = item.value.IsScalar();
+    bool ok = Plain(item);
     if (ok) {
       const std::string& text = item.value.Scalar();
       const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
@@ -807,14 +810,14 @@ class Reader {
   }
 
   std::optional<bool> Bool(const Item& item) {
+    // YAML 1.2's spellings only: yes, on, y and friends (YAML 1.1) are
+    // strings there, and a typo's reading should not depend on the version.
     bool value = false;
-    bool ok = item.value.IsScalar();
+    bool ok = Plain(item);
     if (ok) {
-      try {
-        value = item.value.as<bool>();
-      } catch (const YAML::Exception&) {
-        ok = false;
-      }
+      const std::string& text = item.value.Scalar();
+      value = text == "true" || text == "True" || text == "TRUE";
+      ok = value || text == "false" || text == "False" || text == "FALSE";
     }
     if (!ok) {
       Error(item.line, item.path, "expected true or false" + Got(item));
@@ -952,7 +955,9 @@ class Reader {
   }
 
   static std::string Got(const Item& item) {
-    return item.value.IsScalar() ? " (got '" + item.value.Scalar() + "')" : "";
+    if (!item.value.IsScalar()) return "";
+    return item.value.Tag() == "!" ? " (got the quoted string \"" + item.value.Scalar() + "\")"
+                                   : " (got '" + item.value.Scalar() + "')";
   }
 
  public:
