@@ -385,7 +385,23 @@ TEST_F(DaemonE2E, SigtermDuringStartUpAndAtALowRateEndsCleanlyWithinASecond) {
     fs::create_directories(dir_ / "early");
     testing::HullguarddRun daemon(g_daemon, g_source_dir + "/config/demo.yaml", 60.0,
                                   dir_ / "early");
-    std::this_thread::sleep_for(100ms);  // Start-up (obstacle maps, tracking) takes longer.
+    // As soon as it catches SIGTERM (/proc: SigCgt), well before its start-up
+    // (config, obstacle maps, tracking voxels, cameras) is done. Before main()
+    // nothing can catch it, so this waits for that.
+    auto catches_sigterm = [&] {
+      std::ifstream status("/proc/" + std::to_string(daemon.pid()) + "/status");
+      for (std::string line; std::getline(status, line);) {
+        if (line.rfind("SigCgt:", 0) == 0) {
+          return ((std::stoull(line.substr(7), nullptr, 16) >> (SIGTERM - 1)) & 1u) != 0;
+        }
+      }
+      return false;
+    };
+    for (const auto end = Clock::now() + 10s; Clock::now() < end && !catches_sigterm();) {
+      std::this_thread::sleep_for(1ms);
+    }
+    ASSERT_TRUE(catches_sigterm()) << daemon.Log();
+    EXPECT_EQ(daemon.Log().find("running"), std::string::npos) << "started up already";
     Clock::duration took{};
     EXPECT_EQ(daemon.Terminate(1s, &took), 0) << daemon.Log();
     EXPECT_LT(took, 1s);
