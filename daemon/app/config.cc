@@ -317,7 +317,9 @@ const Field<SimSourceConfig> kSimFields[] = {
                 "ground-truth masks: the empty cell rendered once, the people painted into it "
                 "from their masks with sensor noise (no light changes or shadows; cheap enough "
                 "for 8 Full HD cameras at 30 Hz). The people appear only after 2 * "
-                "background.learn_frames frames plus 1 s, while the cell is learned empty."},
+                "background.learn_frames frames plus 1 s of scene time, and not before every "
+                "colour camera's background model has learned the cell empty (a slow start-up "
+                "would otherwise have the models learn the people in)."},
     {.key = "bayer",
      .member = &SimSourceConfig::bayer,
      .meaning = "Colour frames (implies `colour`) delivered as the raw BayerRG8 mosaic, one byte "

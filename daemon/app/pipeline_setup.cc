@@ -68,6 +68,14 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
   std::map<std::string, std::shared_ptr<const sim::Scene>> scenes;
   std::vector<int> scene_camera(config.cameras.size(), -1);
   std::vector<std::optional<capture::RecordingCamera>> recordings(config.cameras.size());
+  // The simulated colour cameras show their people only once every one of
+  // them has its background learned.
+  int colour_sims = 0;
+  for (const CameraConfig& c : config.cameras) {
+    const auto* sim_source = std::get_if<SimSourceConfig>(&c.source);
+    if (sim_source != nullptr && (sim_source->colour || sim_source->bayer)) ++colour_sims;
+  }
+  const auto people_gate = std::make_shared<capture::SimSource::PeopleGate>(colour_sims);
   for (std::size_t i = 0; i < config.cameras.size(); ++i) {
     const CameraConfig& c = config.cameras[i];
     const std::string where = config.source_file + ": camera '" + c.model.name + "': ";
@@ -119,10 +127,12 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
           std::make_unique<capture::SimSource>(scene, scene_camera[i], scene->rate_hz, clock);
       if (sim_source->stop_after_s) source->SetStopAfter(*sim_source->stop_after_s);
       if (sim_source->colour || sim_source->bayer) {
-        // Twice the learning frames: a camera that drops frames still learns
-        // the cell empty.
+        // Twice the learning frames, and after that until every colour
+        // camera's model has learned: the cell is learned empty however late
+        // start-up ends or however many frames a loaded worker drops.
         source->EnableColour(2.0 * config.background.learn_frames / scene->rate_hz + 1.0,
                              sim_source->bayer);
+        source->HoldPeopleUntilLearned(people_gate);
       }
       cameras.push_back({c.model, std::move(source), c.timeout_ms});
       continue;

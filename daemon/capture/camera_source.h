@@ -54,6 +54,11 @@ class CameraSource {
   [[nodiscard]] virtual std::uint64_t corrupt_frames() const { return 0; }
   /// Transport counters; may be called from any thread while Next() runs.
   [[nodiscard]] virtual TransportStats transport_stats() const { return {}; }
+  /// The pipeline's background model of this camera holds a learned
+  /// background (learning ended, or a saved one was taken up). Called by the
+  /// pipeline's silhouette worker after each frame once that holds; any
+  /// thread. A staged scene (the simulator) keeps its people out until then.
+  virtual void BackgroundLearned() {}
 };
 
 }  // namespace hg::capture

@@ -153,7 +153,11 @@ bool SimSource::Next(Frame* frame, std::chrono::milliseconds timeout) {
     frame->kind = FrameKind::kMask;
     renderer_.Render(people_, &frame->grey);
   } else {
-    if (t < empty_s_) people_.clear();  // Resized again by the next frame's poses.
+    if (t < empty_s_ || (gate_ && !gate_->open())) {
+      people_.clear();  // Resized again by the next frame's poses.
+    } else if (people_from_ns_.load(std::memory_order_relaxed) == 0) {
+      people_from_ns_.store(clock_.epoch_ns + since_start.count());
+    }
     renderer_.Render(people_, &mask_);
     const int width = mask_.width, height = mask_.height;
     std::uint8_t* out = nullptr;

@@ -59,6 +59,31 @@ class SimSource : public CameraSource {
   /// (FrameKind::kMono), as a GigE colour camera delivers it.
   void EnableColour(double empty_s, bool bayer = false);
 
+  /// Holds the people of a group of colour sources out of their frames until
+  /// the background model of every camera of the group has learned the empty
+  /// cell (each calls BackgroundLearned()), however late or slowly that is:
+  /// after `empty_s` alone, a start-up slower than it (a loaded machine) had
+  /// the models learn the people in, and report them free. Thread-safe.
+  class PeopleGate {
+   public:
+    explicit PeopleGate(int cameras) : waiting_(cameras) {}
+    void Learned() { waiting_.fetch_sub(1); }
+    [[nodiscard]] bool open() const { return waiting_.load() <= 0; }
+
+   private:
+    std::atomic<int> waiting_;
+  };
+  /// Colour mode: people also wait for `gate` (set before the capture thread starts).
+  void HoldPeopleUntilLearned(std::shared_ptr<PeopleGate> gate) { gate_ = std::move(gate); }
+  void BackgroundLearned() override {
+    if (gate_ && !learned_.load(std::memory_order_relaxed) && !learned_.exchange(true)) {
+      gate_->Learned();
+    }
+  }
+  /// Colour mode: the capture stamp of the first frame that showed the
+  /// people (CLOCK_REALTIME ns); 0 before.
+  [[nodiscard]] std::int64_t people_shown_from_ns() const { return people_from_ns_.load(); }
+
  private:
   std::shared_ptr<const sim::Scene> scene_;
   int camera_index_;
@@ -75,6 +100,9 @@ class SimSource : public CameraSource {
   bool colour_ = false;
   bool bayer_ = false;
   double empty_s_ = 0.0;
+  std::shared_ptr<PeopleGate> gate_;
+  std::atomic<bool> learned_{false};  // This camera counted in gate_.
+  std::atomic<std::int64_t> people_from_ns_{0};
   std::vector<std::uint8_t> empty_;     // RGB, or the mosaic.
   std::vector<std::uint8_t> painted_;   // The empty cell 100 grey levels off: the people's colour.
   std::vector<std::uint8_t> noise_up_;  // The noise where positive, 0 elsewhere.

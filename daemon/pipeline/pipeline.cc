@@ -217,6 +217,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     } else {
       c.background->Apply(frame.grey, &c.foreground);
     }
+    if (c.source && !c.background->learning()) c.source->BackgroundLearned();
     if (was_learning && !c.background->learning() && !options_.background_dir.empty()) {
       // Once per learning, at the end of warm-up; the folder is made if missing.
       std::string error;

@@ -693,6 +693,41 @@ TEST(PipelineTest, PeopleStandingStillForAMinuteStayOccupied) {
 // point inside them is published free, and the rest of the cell is.
 // Sim colour frames, RGB or the raw Bayer mosaic, through the background
 // model: no point inside a person is free once the people are in.
+// The simulator's people stay out of the colour frames, past the empty
+// period, until every camera of the gate has had its background learned; then
+// they come in, and the source says from which frame.
+TEST(SimSourceTest, PeopleWaitForEveryCameraToHaveLearned) {
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  const capture::SimClock clock = capture::SimClock::Now();
+  const auto gate = std::make_shared<capture::SimSource::PeopleGate>(2);
+  capture::SimSource a(scene, 0, 30.0, clock), b(scene, 1, 30.0, clock);
+  a.EnableColour(0.0);  // No empty period: only the gate holds them.
+  b.EnableColour(0.0);
+  a.HoldPeopleUntilLearned(gate);
+  b.HoldPeopleUntilLearned(gate);
+  common::ImageRgb8 empty;
+  sim::ColourRenderer(*scene, 0).RenderEmpty(&empty);
+  auto largest_change = [&](const capture::Frame& frame) {
+    int largest = 0;
+    for (std::size_t i = 0; i < empty.pixels.size(); ++i) {
+      largest = std::max(largest, std::abs(frame.rgb.pixels[i] - empty.pixels[i]));
+    }
+    return largest;
+  };
+  capture::Frame frame;
+  ASSERT_TRUE(a.Next(&frame, 500ms));
+  EXPECT_LT(largest_change(frame), 20) << "people in before any model learned";
+  a.BackgroundLearned();
+  a.BackgroundLearned();  // Counted once.
+  ASSERT_TRUE(a.Next(&frame, 500ms));
+  EXPECT_LT(largest_change(frame), 20) << "people in before the second camera's model learned";
+  EXPECT_EQ(a.people_shown_from_ns(), 0);
+  b.BackgroundLearned();
+  ASSERT_TRUE(a.Next(&frame, 500ms));
+  EXPECT_GT(largest_change(frame), 50) << "the people (100 grey levels off) did not come in";
+  EXPECT_EQ(a.people_shown_from_ns(), frame.stamp_ns);
+}
+
 void SimColourFramesThroughTheBackgroundModel(bool bayer) {
   const std::shared_ptr<sim::Scene> scene = StandingScene();
   const capture::SimClock clock = capture::SimClock::Now();
@@ -707,9 +742,13 @@ void SimColourFramesThroughTheBackgroundModel(bool bayer) {
   constexpr double kEmptyS = 2.0;
   std::vector<PipelineCamera> cameras;
   std::vector<capture::SimSource*> sources;
+  // And until every camera's model has learned (as hullguardd's sim does).
+  const auto gate =
+      std::make_shared<capture::SimSource::PeopleGate>(static_cast<int>(scene->cameras.size()));
   for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
     auto source = std::make_unique<capture::SimSource>(scene, c, 30.0, clock);
     source->EnableColour(kEmptyS, bayer);
+    source->HoldPeopleUntilLearned(gate);
     sources.push_back(source.get());
     cameras.push_back({scene->cameras[c].model, std::move(source), 150});
   }
@@ -743,8 +782,21 @@ void SimColourFramesThroughTheBackgroundModel(bool bayer) {
   }
   Pipeline pipeline(options, std::move(cameras), {}, nullptr);
   pipeline.Start();
-  const std::int64_t people_from =
-      clock.epoch_ns + static_cast<std::int64_t>((kEmptyS + 0.2) * 1e9);
+  // From when the last camera showed the people, and a little after.
+  std::int64_t shown_ns = 0;
+  for (const auto give_up = std::chrono::steady_clock::now() + 30s;
+       std::chrono::steady_clock::now() < give_up;) {
+    shown_ns = 0;
+    for (const capture::SimSource* source : sources) {
+      const std::int64_t from = source->people_shown_from_ns();
+      shown_ns = from == 0 || shown_ns < 0 ? -1 : std::max(shown_ns, from);
+    }
+    if (shown_ns > 0) break;
+    std::this_thread::sleep_for(20ms);
+  }
+  ASSERT_GT(shown_ns, 0) << "the people never came in: a model did not learn";
+  EXPECT_GE(shown_ns, clock.epoch_ns + static_cast<std::int64_t>(kEmptyS * 1e9));
+  const std::int64_t people_from = shown_ns + 200'000'000;
   int free = 0;
   const int checked =
       ForHealthySnapshots(pipeline, people_from, 10, [&](const OccupancySnapshot& s) {
