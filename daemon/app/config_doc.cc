@@ -45,6 +45,9 @@ cameras:
     timeout_ms: 300
 obstacles:
   - file: demo_cell/obstacles.obj
+# The GigE camera's learned background, kept across restarts: learned once,
+# with the cell empty (operations.md).
+background: {keep_dir: /var/lib/hullguard/background}
 dds: {domain_id: 0}
 logging: {level: info}
 )";
