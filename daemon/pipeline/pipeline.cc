@@ -315,6 +315,9 @@ void Pipeline::FusionLoop() {
     const bool new_second = cycle_start - last_second >= std::chrono::seconds(1);
     const double elapsed_s = std::chrono::duration<double>(cycle_start - last_second).count();
     if (new_second) last_second = cycle_start;
+    // Raised margins are held once the cycle is locked to the frames (or
+    // when it is not asked to lock); before, they follow each cycle's need.
+    hold_margins_ = !options_.align_to_frames || phase.locked();
     octree::UpdateControl control;
     control.deadline = cycle_start + std::chrono::microseconds(
                                          static_cast<std::int64_t>(options_.deadline_ms * 1e3));
@@ -360,6 +363,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       c.fresh = true;
       c.last_stamp_ns = slot->stamp_ns;
       c.last_ready = slot->ready;
+      if (!c.seen) c.first_stamp_ns = slot->stamp_ns;
       c.seen = true;
     }
     const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
@@ -373,6 +377,12 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
     if (new_second) {
       c.fps = static_cast<double>(frames - c.frames_at_last_second) / fps_window_s;
       c.frames_at_last_second = frames;
+      c.fps_windowed = true;
+    } else if (!c.fps_windowed && c.seen && frames > 1 && c.last_stamp_ns > c.first_stamp_ns) {
+      // Before the first whole second (the first health lines, READY=1's
+      // STATUS=): the rate over the frames so far, rather than 0.
+      c.fps = static_cast<double>(frames - 1) /
+              (static_cast<double>(c.last_stamp_ns - c.first_stamp_ns) * 1e-9);
     }
     CameraHealth& h = health.cameras[i];
     if (h.name != c.model.name) h.name = c.model.name;
@@ -423,7 +433,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       const double margin = octree::Octree::RoundMargin(needed);
       // Up at once; down only once the hold has passed (each change makes
       // the octree recompute the camera everywhere).
-      if (margin >= c.margin_m || now_ns >= c.margin_held_until_ns) {
+      if (margin >= c.margin_m || now_ns >= c.margin_held_until_ns || !hold_margins_) {
         c.margin_m = margin;
         c.margin_held_until_ns = now_ns + kMarginHoldNs;
       }

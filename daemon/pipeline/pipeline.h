@@ -125,7 +125,10 @@ struct PipelineCamera {
 /// grown by that distance), so the published occupancy holds every person as
 /// they were at T. Margins are rounded up (octree::Octree::RoundMargin) and lowered only
 /// after kMarginHoldNs without need (each change makes the octree recompute
-/// that camera everywhere). Consumers add their own reaction time to the
+/// that camera everywhere), except while the running cycle is not yet
+/// phase-locked to the frames (timing.align_to_frames): at start-up the
+/// cameras' first frames arrive out of step, and holding the margins of that
+/// moment would fatten the occupancy for the hold's length. Consumers add their own reaction time to the
 /// stamp's age, as for any safety sensor.
 class Pipeline {
  public:
@@ -201,6 +204,8 @@ class Pipeline {
     bool was_live = false;                             // Used in the previous cycle.
     std::uint64_t frames_at_last_second = 0;
     double fps = 0.0;
+    bool fps_windowed = false;        // A whole one-second window has been counted.
+    std::int64_t first_stamp_ns = 0;  // Capture stamp of the first frame taken.
     CameraRuntime(geometry::CameraModel m, std::unique_ptr<capture::CameraSource> s, int timeout)
         : model(std::move(m)),
           source(std::move(s)),
@@ -253,6 +258,9 @@ class Pipeline {
   double published_cell_m3_ = 0.0;
   common::SharedSlot<const OccupancySnapshot> latest_;
   std::atomic<bool> stop_{false};
+  // Fusion thread only: whether RunCycle holds raised margins (kMarginHoldNs).
+  // FusionLoop clears it while the cycle is not phase-locked; Step() keeps it.
+  bool hold_margins_ = true;
   std::vector<std::thread> threads_;
   std::uint64_t sequence_ = 0;
   std::uint64_t deadline_misses_ = 0;
