@@ -128,8 +128,8 @@ struct PipelineCamera {
 /// that camera everywhere), except while the running cycle is not yet
 /// phase-locked to the frames (timing.align_to_frames): at start-up the
 /// cameras' first frames arrive out of step, and holding the margins of that
-/// moment would fatten the occupancy for the hold's length. Consumers add their own reaction time to the
-/// stamp's age, as for any safety sensor.
+/// moment would fatten the occupancy for the hold's length. Consumers add their own reaction time
+/// to the stamp's age, as for any safety sensor.
 class Pipeline {
  public:
   /// A margin is lowered only after this long (ns) without a lag needing it.
