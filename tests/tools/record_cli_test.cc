@@ -9,7 +9,9 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <regex>
@@ -161,6 +163,35 @@ TEST_F(RecordCliTest, RecordsSimCamerasAndReplaysDeterministically) {
       Hullguard("record --config " + Path("sim.yaml") + " --out " + Path("rec") + " --seconds 0.2");
   EXPECT_EQ(again.code, 2);
   EXPECT_NE(again.err.find("already holds a recording"), std::string::npos) << again.err;
+}
+
+// Simulated colour cameras recorded: the people come in after the empty
+// period (nothing learns a background while recording, so nothing may hold
+// them back longer, as the daemon's models do).
+TEST_F(RecordCliTest, SimColourCamerasShowTheirPeopleAfterTheEmptyPeriod) {
+  // learn_frames 5: the people come in after 2 * 5 / 30 + 1 s.
+  std::ofstream(Path("colour.yaml")) << Config("{type: sim, scene: " + kScene + ", colour: true}",
+                                               "background: {learn_frames: 5}\n");
+  const auto r = Hullguard("record --config " + Path("colour.yaml") + " --out " + Path("rec") +
+                           " --seconds 2.5");
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  const capture::RecordingCamera rec = capture::ReadRecordingCamera(Path("rec"), "cam0");
+  ASSERT_EQ(rec.kind, capture::FrameKind::kRgb);
+  ASSERT_GE(rec.frames.size(), 2U);
+  capture::Frame first, last;
+  std::vector<unsigned char> bytes;
+  std::string path;
+  ASSERT_TRUE(capture::LoadRecordedFrame(rec, 0, &first, &bytes, &path)) << path;
+  ASSERT_TRUE(capture::LoadRecordedFrame(rec, rec.frames.size() - 1, &last, &bytes, &path)) << path;
+  ASSERT_EQ(first.rgb.pixels.size(), last.rgb.pixels.size());
+  const double span_s =
+      static_cast<double>(rec.frames.back().stamp_ns - rec.frames[0].stamp_ns) * 1e-9;
+  ASSERT_GT(span_s, 1.6) << "too short a recording to pass the empty period";
+  int largest = 0;  // People are painted 100 grey levels off the empty cell; noise is below 20.
+  for (std::size_t i = 0; i < first.rgb.pixels.size(); ++i) {
+    largest = std::max(largest, std::abs(last.rgb.pixels[i] - first.rgb.pixels[i]));
+  }
+  EXPECT_GT(largest, 50) << "no people in the last frame, " << span_s << " s in";
 }
 
 // A frame that cannot be written (a folder stands where cam0's third frame

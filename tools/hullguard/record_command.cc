@@ -78,6 +78,10 @@ int RunRecord(const RecordFlags& f) {
   }
   std::vector<pipeline::PipelineCamera> cameras =
       app::MakeCameras(config, capture::SimClock::Now());
+  // No background model learns here: the simulated colour cameras show their
+  // people after their empty period alone (a replay's models learn from the
+  // recording's first frames, which hold the empty cell).
+  for (pipeline::PipelineCamera& c : cameras) c.source->BackgroundLearned();
   std::vector<geometry::CameraModel> models;
   for (const pipeline::PipelineCamera& c : cameras) models.push_back(c.model);
   const capture::ImageFormat format = f.format == "png"   ? capture::ImageFormat::kPng
