@@ -1733,9 +1733,8 @@ std::vector<std::string> SimSpeedNotices(const Config& config) {
     const sim::Scene scene = sim::LoadScene(path);
     double fastest = 0.0;
     for (const sim::Person& person : scene.people) {
-      double end_s = 0.0;
-      for (const sim::Action& a : person.actions) end_s = std::max(end_s, a.start_s + a.duration_s);
-      fastest = std::max(fastest, sim::FastestPartSpeed(person, 0.0, end_s + 1.0));
+      fastest =
+          std::max(fastest, sim::FastestPartSpeed(person, 0.0, sim::ScriptEndS(person) + 1.0));
     }
     if (fastest <= config.motion.max_speed_mps) continue;
     char text[256];

@@ -753,6 +753,12 @@ Sample EvaluateTimeline(const Person& person, const Dims& d, double t_s, ActionK
 
 }  // namespace
 
+double ScriptEndS(const Person& person) {
+  double end_s = 0.0;
+  for (const Action& a : person.actions) end_s = std::max(end_s, a.start_s + a.duration_s);
+  return end_s;
+}
+
 double FastestPartSpeed(const Person& person, double t0_s, double t1_s, double step_s) {
   double fastest = 0.0;
   BodyState before = EvaluatePerson(person, t0_s);

@@ -104,6 +104,9 @@ struct BodyState {
 /// The axis-aligned bounding box of every part (the body box; centre_W is its centre).
 [[nodiscard]] common::Box3 BodyBox(const BodyState& state);
 
+/// Scene time (s) at which the person's last action ends.
+[[nodiscard]] double ScriptEndS(const Person& person);
+
 /// The fastest any point of the person moves (m/s) over [t0_s, t1_s],
 /// measured per `step_s`: a point inside a capsule at t + dt lies within the
 /// larger of its ends' displacements of the capsule at t (the segment moves

@@ -294,9 +294,7 @@ TEST(ConfigTest, EveryShippedConfigLoads) {
 double FastestPartSpeed(const sim::Scene& scene) {
   double fastest = 0.0;
   for (const sim::Person& person : scene.people) {
-    double end_s = 0.0;
-    for (const sim::Action& a : person.actions) end_s = std::max(end_s, a.start_s + a.duration_s);
-    fastest = std::max(fastest, sim::FastestPartSpeed(person, 0.0, end_s + 1.0));
+    fastest = std::max(fastest, sim::FastestPartSpeed(person, 0.0, sim::ScriptEndS(person) + 1.0));
   }
   return fastest;
 }

@@ -68,9 +68,7 @@ double Mean(const std::vector<double>& v) {
 /// Scene time when the last person's script ends.
 double ScriptEnd(const sim::Scene& scene) {
   double end = 0.0;
-  for (const sim::Person& person : scene.people) {
-    for (const sim::Action& a : person.actions) end = std::max(end, a.start_s + a.duration_s);
-  }
+  for (const sim::Person& person : scene.people) end = std::max(end, sim::ScriptEndS(person));
   return end;
 }
 
