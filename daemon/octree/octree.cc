@@ -65,6 +65,31 @@ common::Box3 CellBox(const common::Box3& bounds, const Cell& cell) {
   return b;
 }
 
+/// A node a coarse-first pass stopped at, with what its children take over
+/// from it (Visit()'s child_* values): the next pass goes on from here.
+struct Octree::CappedEntry {
+  std::uint64_t cell;       // PackCell().
+  std::uint32_t index;      // The node.
+  std::uint32_t since;      // Its stamp: 0 when its subtree is recomputed whole.
+  std::uint32_t unchanged;  // Cameras without a change in its footprint.
+  std::uint16_t inherit;    // Cameras full or hidden for it.
+  std::uint16_t clear;      // Cameras that see it in front of every obstacle.
+};
+
+namespace {
+static_assert(Octree::kMaxDepth <= 19 && Octree::kMaxCameras <= 16);
+std::uint64_t PackCell(const Cell& c) {
+  return static_cast<std::uint64_t>(c.level) | (static_cast<std::uint64_t>(c.x) << 5) |
+         (static_cast<std::uint64_t>(c.y) << 24) | (static_cast<std::uint64_t>(c.z) << 43);
+}
+Cell UnpackCell(std::uint64_t key) {
+  constexpr std::uint64_t kCoord = (std::uint64_t{1} << 19) - 1;
+  return {static_cast<int>(key & 31u), static_cast<std::uint32_t>((key >> 5) & kCoord),
+          static_cast<std::uint32_t>((key >> 24) & kCoord),
+          static_cast<std::uint32_t>((key >> 43) & kCoord)};
+}
+}  // namespace
+
 /// Per-worker counters and scratch, reused from update to update.
 struct alignas(64) Octree::WorkerScratch {
   std::int64_t visited = 0;
@@ -88,7 +113,10 @@ struct alignas(64) Octree::WorkerScratch {
   // Free blocks of eight nodes, and the nodes the coarse passes stopped at
   // this update: reserved at construction for every block of the store.
   std::vector<std::uint32_t> free_blocks;
-  std::vector<std::uint32_t> capped;
+  // `capped`: the nodes this pass stops at; `capped_before`: those the
+  // previous pass stopped at, which this one goes on from.
+  std::vector<CappedEntry> capped;
+  std::vector<CappedEntry> capped_before;
   std::int64_t unsplit = 0;  // Nodes left pending for want of free blocks.
   int root = 0;              // The root this worker is in.
 };
@@ -99,8 +127,8 @@ class Octree::Updater {
   /// A pass does not split nodes at `split_limit` (the finest level: no
   /// limit): a node there that needs finer work is left kCoarse (its subtree
   /// as of the last update, to be brought up to date) or, when its subtree is
-  /// stale, pending. A kRefine pass then works only below such nodes:
-  /// everything above them is up to date.
+  /// stale, pending. A kRefine pass then works only below such nodes
+  /// (RefineRoot()): everything above them is up to date.
   enum class Pass { kFull, kRefine };
 
   Updater(Octree& tree, std::span<const silhouette::SilhouetteQuadtree* const> masks,
@@ -112,21 +140,19 @@ class Octree::Updater {
         control_(control),
         boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening),
         split_limit_(split_limit),
-        refine_(pass == Pass::kRefine),
         spent_(spent) {}
 
   /// Per-worker counters, summed after the pass.
   using Counters = WorkerScratch;
 
+  /// A full pass over root r: from the root down.
   void UpdateRoot(int r, Counters& counters) {
     counters.root = r;
     RootPool& pool = tree_.roots_[r];
     const Cell cell{kRootLevel, static_cast<std::uint32_t>(r & 7),
                     static_cast<std::uint32_t>((r >> 3) & 7), static_cast<std::uint32_t>(r >> 6)};
-    // A refinement pass starts where every change is applied already.
-    const std::uint32_t unchanged = refine_ ? kAllCameras : 0u;
-    Visit(pool, static_cast<std::uint32_t>(r), cell, false, 0, 0, 0, unchanged, now_ - 1, nullptr,
-          0, counters);
+    Visit(pool, static_cast<std::uint32_t>(r), cell, false, 0, 0, 0, 0, now_ - 1, nullptr, 0,
+          counters);
   }
 
   bool aborted() const { return aborted_.load(std::memory_order_relaxed); }
@@ -319,6 +345,10 @@ class Octree::Updater {
     return first;
   }
 
+  static std::uint32_t WitnessOf(const Node& n) {
+    return static_cast<std::uint32_t>(n.flags) >> kWitnessShift;
+  }
+
   // Returns whether the leaf reads occupied.
   bool MakeLeaf(Counters& k, std::uint32_t index, NodeState state) {
     Node& n = N(index);
@@ -356,7 +386,7 @@ class Octree::Updater {
   // for the parent and therefore for every child.
   std::uint32_t FinestChildren(RootPool& pool, const Cell& cell, const common::Box3& box,
                                std::uint32_t inherit, std::uint32_t verdicts, std::uint32_t clear,
-                               Counters& k) {
+                               std::uint32_t* witness, Counters& k) {
     const int num_cameras = static_cast<int>(tree_.cameras_.size());
     // The children's cached obstacle relations: eight consecutive entries.
     std::uint32_t* child_relations = cell.level + 1 <= tree_.relation_level_
@@ -384,7 +414,11 @@ class Octree::Updater {
     // with the node when a camera sees a change in it.
     const bool settles = tree_.config_.settle_level > 0 && cell.level >= tree_.config_.settle_level;
     std::uint32_t packed = 0;
-    for (int i = 0; i < 8; ++i) {
+    // The child that read occupied last goes first: while it still does, the
+    // others need no look-up.
+    const std::uint32_t first = settles ? *witness : 0u;
+    for (std::uint32_t order = 0; order < 8; ++order) {
+      const int i = static_cast<int>(order ^ first);
       if (settles && (packed & 0x5555u) != 0) {
         packed |= static_cast<std::uint32_t>(LeafState::kOccupied) << (2 * i);
         continue;
@@ -418,6 +452,7 @@ class Octree::Updater {
       const LeafState s = any_free          ? LeafState::kFree
                           : sees_foreground ? LeafState::kOccupied
                                             : LeafState::kOccluded;
+      if (s == LeafState::kOccupied && (packed & 0x5555u) == 0) *witness = i;
       packed |= static_cast<std::uint32_t>(s) << (2 * i);
     }
     k.visited += 8;
@@ -533,16 +568,11 @@ class Octree::Updater {
     const bool has_children = node.state == kInner || node.state == kPackedInner;
     if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
         (unsettled == 0 || !has_children) && (node.flags & kHasPending) == 0) {
-      if (pending) N(index).flags &= kHoldsOccupied;
+      if (pending) N(index).flags &= kHoldsOccupied | kWitnessBits;
       return ReadsOccupied(N(index));  // Subtree still exact.
     }
     if (CheckAbort(k)) {
-      // Above the nodes the coarse pass stopped at (where every change is
-      // applied: `unchanged` holds every camera), the refinement pass meets
-      // only nodes that are up to date: they stay as they are, and the kCoarse
-      // nodes below become pending when the update ends (FinishCoarse).
-      // Anything else is stale from here down.
-      if (refine_ && !recompute_all && unchanged == kAllCameras) return ReadsOccupied(N(index));
+      // Stale from here down.
       if ((node.flags & kCapped) == 0) ++k.pending;  // Capped ones are counted at the end.
       Node& n = N(index);
       n.flags |= kPending;
@@ -641,8 +671,12 @@ class Octree::Updater {
       Node& n = N(index);
       n.stamp = recompute_all ? 0 : since;
       if (k.capped.size() < k.capped.capacity()) {
-        n.flags = kCapped | (recompute_all ? kPending : kCoarse) | (n.flags & kHasPending);
-        k.capped.push_back(index);
+        n.flags = kCapped | (recompute_all ? kPending : kCoarse) |
+                  (n.flags & (kHasPending | kWitnessBits));
+        // What the next pass needs to go on with its children at once.
+        k.capped.push_back({PackCell(cell), index, n.stamp, child_unchanged,
+                            static_cast<std::uint16_t>(child_inherit),
+                            static_cast<std::uint16_t>(child_clear)});
       } else {
         // No room to list it (the list holds as many entries as the store
         // has blocks, which a store nearly full falls short of): pending at
@@ -653,13 +687,46 @@ class Octree::Updater {
       }
       return false;  // Unknown until refined.
     }
+    return Split(pool, index, cell, box, recompute_all, child_inherit, child_clear, child_unchanged,
+                 since, k);
+  }
+
+ public:
+  /// A refinement pass over root r: goes on below the nodes the previous
+  /// pass stopped at, from the list that pass made, without walking down to
+  /// them again (everything above them is up to date).
+  void RefineRoot(int r, const CappedRange& range, Counters& k) {
+    k.root = r;
+    RootPool& pool = tree_.roots_[r];
+    const std::vector<CappedEntry>& list = tree_.scratch_[range.worker].capped_before;
+    for (std::uint32_t e = range.begin; e < range.end; ++e) {
+      const CappedEntry& entry = list[e];
+      // Left capped on an abort: FinishCoarse() makes it pending.
+      if (CheckAbort(k)) return;
+      Node& n = N(entry.index);
+      n.flags &= static_cast<std::uint8_t>(~(kCapped | kCoarse | kPending));
+      const Cell cell = UnpackCell(entry.cell);
+      Split(pool, entry.index, cell, CellBox(tree_.config_.bounds, cell), entry.since == 0,
+            entry.inherit, entry.clear, entry.unchanged, entry.since, k);
+    }
+  }
+
+ private:
+  // The node's children (a node that is mixed and above the finest level):
+  // split it, or go on with its children. `child_*` as Visit() passes them down.
+  bool Split(RootPool& pool, std::uint32_t index, const Cell& cell, const common::Box3& box,
+             bool recompute_all, std::uint32_t child_inherit, std::uint32_t child_clear,
+             std::uint32_t child_unchanged, std::uint32_t since, Counters& k) {
+    const Node node = N(index);
     if (cell.level + 1 == tree_.config_.depth) {
       // Children at the finest level: evaluated together, stored in the node.
+      std::uint32_t witness = WitnessOf(node);
       const std::uint32_t packed =
-          FinestChildren(pool, cell, box, child_inherit, node.verdicts, child_clear, k);
+          FinestChildren(pool, cell, box, child_inherit, node.verdicts, child_clear, &witness, k);
       MakeLeaf(k, index, kPackedInner);
       Node& n = N(index);
       n.children = packed;
+      n.flags = static_cast<std::uint8_t>(witness << kWitnessShift);
       return ReadsOccupied(n);
     }
 
@@ -694,7 +761,12 @@ class Octree::Updater {
     std::uint8_t below = 0;
     bool holds = false;
     const bool settles = tree_.config_.settle_level > 0 && cell.level >= tree_.config_.settle_level;
-    for (std::uint32_t i = 0; i < 8; ++i) {
+    // The child that read occupied last goes first: while it still does, the
+    // others are left pending without a look.
+    const std::uint32_t witness = settles ? WitnessOf(node) : 0u;
+    std::uint32_t found = 0;
+    for (std::uint32_t order = 0; order < 8; ++order) {
+      const std::uint32_t i = order ^ witness;
       if (holds && settles) {
         // A leaf of this settle-level cell reads occupied already: the rest
         // is left unrefined, pending (occupied), recomputed whole when it is
@@ -706,13 +778,15 @@ class Octree::Updater {
         continue;
       }
       const Cell child = cell.Child(i);
-      holds = Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
-                    child_unchanged, since, &g, static_cast<int>(i), k) ||
-              holds;
-      below |= N(first + i).flags & ~kHoldsOccupied;
+      const bool child_holds =
+          Visit(pool, first + i, child, child_force, child_inherit, node.verdicts, child_clear,
+                child_unchanged, since, &g, static_cast<int>(i), k);
+      if (child_holds && !holds) found = i;
+      holds = holds || child_holds;
+      below |= N(first + i).flags & (kPending | kHasPending | kCoarse | kCapped);
     }
-    N(index).flags =
-        static_cast<std::uint8_t>((below != 0 ? kHasPending : 0) | (holds ? kHoldsOccupied : 0));
+    N(index).flags = static_cast<std::uint8_t>(
+        (below != 0 ? kHasPending : 0) | (holds ? kHoldsOccupied : 0) | (found << kWitnessShift));
     return holds;
   }
 
@@ -722,7 +796,6 @@ class Octree::Updater {
   const UpdateControl& control_;
   const int boundary_depth_;
   const int split_limit_;  // Nodes at this level or deeper are not split.
-  const bool refine_;
   std::atomic<bool> aborted_{false};
   std::atomic<std::int64_t>& spent_;  // Nodes recomputed, over the passes of an update.
 };
@@ -767,6 +840,7 @@ Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)
   for (int w = 0; w < config_.num_threads; ++w) {
     scratch_[w].free_blocks.reserve(num_blocks_);
     scratch_[w].capped.reserve(num_blocks_);
+    scratch_[w].capped_before.reserve(num_blocks_);
   }
   Reset();
   last_version_.assign(cameras_.size(), 0);
@@ -806,15 +880,18 @@ std::int64_t Octree::FinishCoarse() {
   // Nodes the refinement did not reach missed this update's changes below
   // them: pending from now on. Their ancestors have kHasPending already.
   std::int64_t left = 0;
+  // An aborted pass leaves some of the previous pass's list unrefined too.
   for (int w = 0; w < pool_->num_threads(); ++w) {
-    for (const std::uint32_t index : scratch_[w].capped) {
-      Node& n = nodes_.get()[index];
-      if ((n.flags & kCapped) == 0) continue;  // Refined.
-      n.flags = kPending | (n.flags & kHasPending);
-      // Its verdicts are newer than its subtree, whose inherited verdicts
-      // came from the ones of its stamp: recompute them all first.
-      n.valid = 0;
-      ++left;
+    for (const auto* list : {&scratch_[w].capped_before, &scratch_[w].capped}) {
+      for (const CappedEntry& entry : *list) {
+        Node& n = nodes_.get()[entry.index];
+        if ((n.flags & kCapped) == 0) continue;  // Refined.
+        n.flags = kPending | (n.flags & kHasPending);
+        // Its verdicts are newer than its subtree, whose inherited verdicts
+        // came from the ones of its stamp: recompute them all first.
+        n.valid = 0;
+        ++left;
+      }
     }
   }
   return left;
@@ -832,6 +909,7 @@ void Octree::Reset() {
   for (int w = 0; w < pool_->num_threads(); ++w) {
     scratch_[w].free_blocks.clear();
     scratch_[w].capped.clear();
+    scratch_[w].capped_before.clear();
   }
 }
 
@@ -925,17 +1003,32 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   UpdateStats stats;
   root_level_.fill(0);
   unsplit_level_.fill(std::numeric_limits<std::uint8_t>::max());
-  int aborted_level = 0;  // The pass that was aborted, if one was.
+  int aborted_level = 0;                      // The pass that was aborted, if one was.
+  std::array<CappedRange, kNumRoots> ranges;  // Of the pass running.
   auto run_pass = [&](Updater::Pass pass, int split_limit) {
+    if (pass == Updater::Pass::kRefine) {
+      for (int w = 0; w < pool_->num_threads(); ++w) {
+        std::swap(scratch_[w].capped, scratch_[w].capped_before);
+        scratch_[w].capped.clear();
+      }
+    }
     Updater shared(*this, masks, control, pass, split_limit, spent);
     auto run = [&](int i, int worker) {
       const int r = kRootOrder[(i + root_start_) % kNumRoots];
-      shared.UpdateRoot(r, scratch_[worker]);
+      WorkerScratch& k = scratch_[worker];
+      const auto begin = static_cast<std::uint32_t>(k.capped.size());
+      if (pass == Updater::Pass::kRefine) {
+        shared.RefineRoot(r, capped_ranges_[r], k);
+      } else {
+        shared.UpdateRoot(r, k);
+      }
+      ranges[r] = {worker, begin, static_cast<std::uint32_t>(k.capped.size())};
       // Finished before any abort: exact to this pass's level. (An abort
       // raised by another worker just after still counts it unfinished.)
       if (!shared.aborted()) root_level_[r] = static_cast<std::uint8_t>(split_limit);
     };
     pool_->Run(kNumRoots, run);
+    capped_ranges_ = ranges;
     if (!shared.aborted()) {
       stats.level_done_ms[split_limit] =
           std::chrono::duration<double, std::milli>(Clock::now() - start).count();
@@ -947,7 +1040,10 @@ UpdateStats Octree::Update(std::span<const silhouette::SilhouetteQuadtree* const
   const bool coarse_first =
       config_.coarse_first_depth > 0 && config_.coarse_first_depth < config_.depth;
   if (coarse_first) {
-    for (int w = 0; w < pool_->num_threads(); ++w) scratch_[w].capped.clear();
+    for (int w = 0; w < pool_->num_threads(); ++w) {
+      scratch_[w].capped.clear();
+      scratch_[w].capped_before.clear();
+    }
     // Coarse to fine: an abort leaves every part of the cell as fine as the
     // last pass that completed, or finer.
     bool aborted = run_pass(Updater::Pass::kFull, config_.coarse_first_depth);

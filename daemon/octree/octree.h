@@ -261,11 +261,15 @@ class Octree {
   static constexpr std::uint8_t kHasPending = 2;
   // Only during an update with coarse first (FinishCoarse() removes them):
   // kCoarse: stopped at by the coarse pass, subtree as of the last update;
-  // kCapped: stopped at by the coarse pass (kCoarse or pending), in `capped`.
+  // kCapped: stopped at by a pass (kCoarse or pending), listed for the next.
   static constexpr std::uint8_t kCoarse = 4;
   static constexpr std::uint8_t kCapped = 8;
   // kInner only, with settle_level: some leaf below reads occupied.
   static constexpr std::uint8_t kHoldsOccupied = 16;
+  // With settle_level, kInner and kPackedInner: bits 5-7 name the child that
+  // read occupied last, the first one the next update looks at.
+  static constexpr int kWitnessShift = 5;
+  static constexpr std::uint8_t kWitnessBits = 0xE0;
 
   /// Nodes of one root: nodes[0] is the root, blocks of 8 children follow.
   struct RootPool {
@@ -278,6 +282,15 @@ class Octree {
   };
   class Updater;
   struct WorkerScratch;
+  struct CappedEntry;
+  /// Where a pass listed the nodes it stopped at in one root: entries
+  /// [begin, end) of worker `worker`'s list.
+  struct CappedRange {
+    int worker = 0;
+    std::uint32_t begin = 0;
+    std::uint32_t end = 0;
+  };
+  std::array<CappedRange, kNumRoots> capped_ranges_{};  // Of the last pass.
 
   /// Ends an update with coarse first; returns the nodes left pending.
   std::int64_t FinishCoarse();
