@@ -476,7 +476,15 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
                 "in the cell when the daemon restarts stays foreground; one that learns writes its "
                 "file when learning ends (making the folder if missing). The cell must be empty "
                 "when a camera learns. To learn "
-                "again, remove the files while the daemon is stopped."},
+                "again, remove the files while the daemon is stopped, or teach with "
+                "`hullguardd --config FILE --learn-background`."},
+    {.key = "learn_at_start",
+     .member = &BackgroundConfig::learn_at_start,
+     .meaning = "A camera that has no kept background to take up (keep_dir) learns the cell from "
+                "its first frames. false (needs keep_dir): it learns nothing and sees nothing "
+                "(status `failed (unlearned)`, degraded) until a background is taught with the "
+                "cell empty, `hullguardd --config FILE --learn-background`; a restart then never "
+                "learns whoever stands in the cell. The safe setting for a service."},
 };
 
 const Field<ObstacleConfig> kObstacleFields[] = {
@@ -1623,6 +1631,11 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   }
   ReadSection<LoggingConfig>(r, sections, "logging", kLoggingFields, &config.logging);
   ReadSection<BlackBoxConfig>(r, sections, "blackbox", kBlackBoxFields, &config.blackbox);
+  if (!config.background.learn_at_start && config.background.keep_dir.empty()) {
+    const int line = key_line("background", "learn_at_start");
+    r.Error(line, "background.learn_at_start",
+            "false needs background.keep_dir: the taught background is kept there");
+  }
   if (!config.background.keep_dir.empty() && fs::path(config.background.keep_dir).is_relative()) {
     config.background.keep_dir =
         (r.base_dir() / config.background.keep_dir).lexically_normal().string();

@@ -151,6 +151,9 @@ struct BackgroundConfig {
   int dilate_px = 2;            ///< Foreground grown by this many pixels.
   /// Folder keeping each camera's learned background across restarts ("": none).
   std::string keep_dir;
+  /// Learn at start when no kept background is taken up (false: that camera
+  /// sees nothing until `hullguardd --learn-background` taught it; needs keep_dir).
+  bool learn_at_start = true;
 };
 
 /// A static obstacle mesh (OBJ or STL).

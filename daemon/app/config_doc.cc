@@ -45,9 +45,9 @@ cameras:
     timeout_ms: 300
 obstacles:
   - file: demo_cell/obstacles.obj
-# The GigE camera's learned background, kept across restarts: learned once,
-# with the cell empty (operations.md).
-background: {keep_dir: /var/lib/hullguard/background}
+# The GigE camera's background, kept across restarts and taught once with the
+# cell empty: hullguardd --config FILE --learn-background (operations.md).
+background: {keep_dir: /var/lib/hullguard/background, learn_at_start: false}
 dds: {domain_id: 0}
 logging: {level: info}
 )";

@@ -26,6 +26,7 @@ int main(int argc, char** argv) {
   std::string config_path;
   std::string check_path;
   bool print_docs = false;
+  bool learn_background = false;
   double duration_s = 0.0;
   // No CLI::ExistingFile check: the loader reports a missing file as every
   // other bad config, "file: cannot open", with exit code 2.
@@ -34,15 +35,21 @@ int main(int argc, char** argv) {
                                    "Validate a config file, print a summary and exit");
   auto* docs_opt = app.add_flag("--print-config-docs", print_docs,
                                 "Print the configuration reference (docs/configuration.md)");
+  auto* learn_opt = app.add_flag(
+      "--learn-background", learn_background,
+      "With --config: learn every camera's background afresh (the cell must be empty), keep it "
+      "in background.keep_dir, and exit (0: every camera kept one); publishes nothing");
   auto* duration_opt = app.add_option("--duration", duration_s,
                                       "With --config: stop after running this many seconds, "
                                       "start-up not counted (0: run until "
-                                      "SIGTERM or SIGINT)")
+                                      "SIGTERM or SIGINT); with --learn-background: give up "
+                                      "after this many seconds (default 60)")
                            ->check(hg::cli::kNonNegative)
                            ->check(hg::cli::kFinite);
   app.set_version_flag("--version", std::string("hullguardd ") + hg::common::Version() + " (" +
                                         hg::common::Commit() + ")");
   config_opt->excludes(check_opt)->excludes(docs_opt);
+  learn_opt->needs(config_opt);
   check_opt->excludes(docs_opt);
   try {
     app.parse(argc, argv);
@@ -97,6 +104,9 @@ int main(int argc, char** argv) {
     return 0;
   }
   try {
+    if (learn_background) {
+      return hg::app::LearnBackground(config, duration_s > 0.0 ? duration_s : 60.0);
+    }
     return hg::app::RunPipeline(config, duration_s);
   } catch (const hg::common::ConfigError& e) {
     std::cerr << e.what() << '\n';

@@ -50,6 +50,9 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.background.guard_px = b.guard_px;
   options.background.compensate_gain = b.compensate_gain;
   options.background_dir = b.keep_dir;
+  options.background_start = b.learn_at_start
+                                 ? pipeline::PipelineOptions::BackgroundStart::kLearn
+                                 : pipeline::PipelineOptions::BackgroundStart::kKeptOnly;
   options.background_dilate_px = b.dilate_px;
   return options;
 }

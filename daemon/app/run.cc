@@ -331,4 +331,102 @@ int RunPipeline(const Config& config, double duration_s) {
   return 0;
 }
 
+int LearnBackground(const Config& config, double timeout_s) {
+  log::Configure("hullguardd", config.logging.level,
+                 config.logging.journald ? log::Sink::kJournal : log::Sink::kStderr);
+  InstallStopSignals();
+  if (config.background.keep_dir.empty()) {
+    log::Error(
+        "--learn-background: background.keep_dir is not set: nowhere to keep what is "
+        "learned");
+    return 2;
+  }
+  pipeline::PipelineOptions options = MakePipelineOptions(config);
+  options.background_start = pipeline::PipelineOptions::BackgroundStart::kRelearn;
+  const std::vector<geometry::TriangleMesh> obstacles = LoadObstacles(config);
+  if (g_stop.load()) return 1;
+  const capture::SimClock sim_clock = capture::SimClock::Now();
+  std::vector<pipeline::PipelineCamera> cameras = MakeCameras(config, sim_clock);
+  const int n = static_cast<int>(cameras.size());
+  // Only the cameras' silhouettes are wanted; the cycles that also run are
+  // handed to nobody.
+  pipeline::Pipeline pipeline(options, std::move(cameras), obstacles, nullptr);
+  log::Info("learning the background of {} cameras into {}; the cell must be empty", n,
+            config.background.keep_dir);
+  pipeline.Start();
+  const auto start = std::chrono::steady_clock::now();
+  const auto limit = std::chrono::duration<double>(timeout_s);
+  // Per camera: whether it is done (kept, failed to keep, or a mask source
+  // that learns nothing).
+  std::vector<bool> done(n, false);
+  bool stopped = false;
+  while (true) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    const auto s = pipeline.Latest();
+    int finished = 0;
+    for (int c = 0; c < n; ++c) {
+      const bool masks_only =
+          !pipeline.HasBackgroundModel(c) && s != nullptr && s->health.cameras[c].frames > 0;
+      done[c] = masks_only || pipeline.BackgroundSaved(c).has_value();
+      finished += done[c] ? 1 : 0;
+    }
+    if (finished == n) break;
+    if (g_stop.load()) {
+      stopped = true;
+      break;
+    }
+    if (std::chrono::steady_clock::now() - start >= limit) break;
+  }
+  const auto last = pipeline.Latest();
+  pipeline.Stop();
+  int kept = 0, failed = 0, image_cameras = 0;
+  for (int c = 0; c < n; ++c) {
+    const std::string& name = config.cameras[c].model.name;
+    if (!pipeline.HasBackgroundModel(c)) {
+      if (done[c]) {
+        std::printf("%s: delivers masks (no background model): nothing to learn\n", name.c_str());
+        continue;
+      }
+    } else {
+      ++image_cameras;
+    }
+    const std::optional<bool> saved = pipeline.BackgroundSaved(c);
+    if (saved == true) {
+      ++kept;
+      std::printf("%s: background kept in %s\n", name.c_str(), pipeline.BackgroundFile(c).c_str());
+      continue;
+    }
+    ++failed;
+    std::string why = saved == false ? "learned, but the file could not be written (see the log)"
+                                     : "did not finish learning";
+    if (!saved.has_value() && last != nullptr) {
+      const pipeline::CameraHealth& h = last->health.cameras[c];
+      why += std::string(" (") + StateName(h.state);
+      if (h.fault != 0) {
+        why += std::string(", ") + capture::ToString(static_cast<capture::CameraFault>(h.fault));
+      }
+      why += ", " + std::to_string(h.frames) + " frames)";
+    }
+    std::printf("%s: %s\n", name.c_str(), why.c_str());
+  }
+  std::fflush(stdout);
+  if (stopped) {
+    log::Warn("--learn-background: stopped by a signal before every camera was done");
+    return 1;
+  }
+  if (failed > 0) {
+    log::Error("--learn-background: {} of {} cameras kept no background", failed, n);
+    return 1;
+  }
+  if (image_cameras == 0) {
+    log::Error(
+        "--learn-background: no camera of this config delivers images (sim masks or mask "
+        "recordings): nothing to learn");
+    return 2;
+  }
+  log::Info("--learn-background: {} cameras kept their background in {}", kept,
+            config.background.keep_dir);
+  return 0;
+}
+
 }  // namespace hg::app

@@ -19,4 +19,15 @@ void InstallStopSignals();
 /// code: 0 after a clean stop, 2 when the config names what cannot run here.
 int RunPipeline(const Config& config, double duration_s);
 
+/// Teaches the background (`hullguardd --learn-background`): opens the
+/// cameras and runs their silhouette stage only (no fusion cycle is
+/// published), has every camera with a background model learn afresh from
+/// its first background.learn_frames frames and keeps what it learned in
+/// background.keep_dir, then stops. The cell must be empty meanwhile.
+/// Returns the exit code: 0 when every such camera kept its background, 1
+/// when one could not (no frames within `timeout_s`, a faulty image, a file
+/// that could not be written), 2 when the config cannot teach (no keep_dir,
+/// or no camera delivers images).
+int LearnBackground(const Config& config, double timeout_s);
+
 }  // namespace hg::app

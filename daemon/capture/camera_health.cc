@@ -18,6 +18,8 @@ const char* ToString(CameraFault fault) {
       return "saturated";
     case CameraFault::kMoved:
       return "moved";
+    case CameraFault::kUnlearned:
+      return "unlearned";
   }
   return "?";
 }

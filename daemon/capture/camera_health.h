@@ -18,9 +18,12 @@ enum class CameraFault : std::uint8_t {
   kBlack = 2,      ///< Lens covered, lights off, iris closed.
   kSaturated = 3,  ///< Blinded by a lamp, exposure run away.
   kMoved = 4,      ///< The view of the static background no longer matches the reference.
+  /// No background to tell people from (none kept, and learning at start is
+  /// off: background.learn_at_start): set by the pipeline, not the monitor.
+  kUnlearned = 5,
 };
 
-/// Stable lower-case name ("none", "frozen", "black", "saturated", "moved").
+/// Stable lower-case name ("none", "frozen", "black", "saturated", "moved", "unlearned").
 [[nodiscard]] const char* ToString(CameraFault fault);
 
 struct CameraHealthOptions {

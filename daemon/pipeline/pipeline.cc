@@ -177,6 +177,16 @@ void Pipeline::SilhouetteLoop(int index) {
   }
 }
 
+std::optional<bool> Pipeline::BackgroundSaved(int camera) const {
+  const std::uint8_t saved = cameras_[camera]->background_saved.load(std::memory_order_acquire);
+  if (saved == 0) return std::nullopt;
+  return saved == 1;
+}
+
+bool Pipeline::HasBackgroundModel(int camera) const {
+  return cameras_[camera]->has_model.load(std::memory_order_acquire);
+}
+
 std::string Pipeline::BackgroundFile(int camera) const {
   return options_.background_dir + "/background-" + cameras_[camera]->model.name + ".bin";
 }
@@ -188,6 +198,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
   common::ImageU8* swappable = spare;
   bool learning = false;  // The mask is the background model's learning one.
   if (frame.kind != capture::FrameKind::kMask) {
+    if (c.unlearned) return;  // Stays failed: see below.
     // A frozen, black, saturated or moved camera certifies nothing: its
     // frames are dropped and fusion counts it as seeing nothing.
     const capture::CameraFault fault = c.health_monitor.Check(frame);
@@ -196,19 +207,35 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     // A repeat of the last frame is not a new view: dropped, so the camera's
     // age keeps growing (dilation, then stale at its timeout) until frozen.
     if (c.health_monitor.repeated()) return;
+    using Start = PipelineOptions::BackgroundStart;
     if (!c.background) {
       // Warm-up, the camera's first frame: the model, and its saved background.
       c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
                                                                    options_.background);
-      if (!options_.background_dir.empty()) {
-        std::string error;
-        const std::string file = BackgroundFile(camera);
-        if (c.background->Load(file, &error)) {
-          log::Info("{}: background taken up from {}", c.model.name, file);
-        } else {
-          log::Info("{}: learning the background ({})", c.model.name, error);
-        }
+      c.has_model.store(true, std::memory_order_release);
+      const std::string file = BackgroundFile(camera);
+      std::string error;
+      if (options_.background_start == Start::kRelearn) {
+        log::Info("{}: learning the background afresh, to be kept in {}", c.model.name, file);
+      } else if (!options_.background_dir.empty() && c.background->Load(file, &error)) {
+        log::Info("{}: background taken up from {}", c.model.name, file);
+      } else if (options_.background_start == Start::kKeptOnly) {
+        c.unlearned = true;
+        log::Error(
+            "{}: no background to take up ({}); background.learn_at_start is off, so this camera "
+            "sees nothing until one is taught: stop the service, empty the cell, run "
+            "`hullguardd --config FILE --learn-background`",
+            c.model.name, error);
+      } else {
+        log::Info("{}: learning the background ({})", c.model.name,
+                  options_.background_dir.empty() ? "no background.keep_dir" : error);
       }
+    }
+    if (c.unlearned) {
+      // Sees nothing (failed), as a faulty camera: nothing it shows was learned.
+      c.fault.store(static_cast<std::uint8_t>(capture::CameraFault::kUnlearned),
+                    std::memory_order_relaxed);
+      return;
     }
     const bool was_learning = c.background->learning();
     learning = was_learning;
@@ -224,11 +251,13 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       std::error_code ec;
       std::filesystem::create_directories(options_.background_dir, ec);
       const std::string file = BackgroundFile(camera);
-      if (c.background->Save(file, &error)) {
+      const bool saved = c.background->Save(file, &error);
+      if (saved) {
         log::Info("{}: background learned, saved to {}", c.model.name, file);
       } else {
         log::Warn("{}: background learned, not saved: {}", c.model.name, error);
       }
+      c.background_saved.store(saved ? 1 : 2, std::memory_order_release);
     }
     // A (2 r + 1)^2 square, without allocating once the scratch has grown.
     silhouette::DilateSquare(&c.foreground, options_.background_dilate_px, &c.dilate_scratch,

@@ -85,6 +85,19 @@ struct PipelineOptions {
   /// ends (making the folder if it is missing). To learn again, remove the
   /// files while the daemon is stopped.
   std::string background_dir;
+  /// What a camera with a background model does at start.
+  enum class BackgroundStart {
+    /// Takes up its kept background (background_dir), or else learns.
+    kLearn,
+    /// Takes up its kept background, or else learns nothing and sees nothing
+    /// (capture::CameraFault::kUnlearned: failed, the status degraded) until
+    /// one is taught: a restart never learns whoever stands in the cell.
+    kKeptOnly,
+    /// Learns afresh whatever is kept, and keeps what it learned (teaching
+    /// the empty cell: `hullguardd --learn-background`).
+    kRelearn,
+  };
+  BackgroundStart background_start = BackgroundStart::kLearn;
   /// SCHED_FIFO priority of the fusion thread (0: normal scheduling). Where
   /// the system refuses it, a warning is logged and the thread runs as is.
   int fusion_realtime_priority = 0;
@@ -167,6 +180,17 @@ class Pipeline {
   /// The newest snapshot (nullptr before the first cycle). Thread-safe.
   [[nodiscard]] std::shared_ptr<const OccupancySnapshot> Latest() const { return latest_.Load(); }
 
+  /// Whether camera `camera` kept the background it learned (background_dir):
+  /// nullopt while it has not finished learning (or learns nothing: a mask
+  /// source, or one that took up a kept background), else whether its file
+  /// was written. Thread-safe.
+  [[nodiscard]] std::optional<bool> BackgroundSaved(int camera) const;
+  /// Whether camera `camera` turns images into silhouettes with a background
+  /// model (its frames so far were images, not masks). Thread-safe.
+  [[nodiscard]] bool HasBackgroundModel(int camera) const;
+  /// The file camera `camera` keeps its background in (background_dir).
+  [[nodiscard]] std::string BackgroundFile(int camera) const;
+
  private:
   struct Slot {
     common::ImageU8 mask;  // Pinhole (undistorted) mask.
@@ -186,6 +210,10 @@ class Pipeline {
     std::atomic<std::uint64_t> frames{0};
     std::atomic<std::uint64_t> corrupt{0};  // Frames of the wrong size.
     std::atomic<std::uint8_t> fault{0};     // capture::CameraFault.
+    bool unlearned = false;  // No background kept, and learning not allowed (kKeptOnly).
+    std::atomic<bool> has_model{false};  // `background` exists (HasBackgroundModel()).
+    // BackgroundSaved(): 0 not yet, 1 saved, 2 failed to save.
+    std::atomic<std::uint8_t> background_saved{0};
     // Silhouette work (one worker at a time).
     capture::CameraHealthMonitor health_monitor;
     common::ImageU8 foreground;
@@ -229,8 +257,6 @@ class Pipeline {
   /// an older buffer of the same size) instead of copied.
   void ProcessFrame(int camera, const capture::Frame& frame, common::ImageU8* spare = nullptr);
   void FusionLoop();
-  /// Where camera `camera`'s learned background is kept (background_dir set).
-  [[nodiscard]] std::string BackgroundFile(int camera) const;
   /// One fusion cycle; fps_window_s > 0 also updates the frame rates.
   /// `received_by`, in live use, is the cycle's start on the steady clock: a
   /// camera also counts as silent when its newest frame was handed over

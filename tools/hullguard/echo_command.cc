@@ -180,7 +180,8 @@ std::uint64_t Cells(const dds_sequence_hullguard_GridRun& runs) {
 }
 
 const char* FaultName(std::uint8_t fault) {
-  static constexpr const char* kNames[] = {"none", "frozen", "black", "saturated", "moved"};
+  static constexpr const char* kNames[] = {"none",      "frozen", "black",
+                                           "saturated", "moved",  "unlearned"};
   return fault < std::size(kNames) ? kNames[fault] : "unknown";
 }
 
