@@ -46,16 +46,18 @@ class LearnBackgroundCliTest : public ::testing::Test {
 
 TEST_F(LearnBackgroundCliTest, TaughtOnPurposeAndNeverLearnedAtStart) {
   const std::string kept = Path("kept");
-  const std::string taught =
-      Write("taught.yaml", true, "{learn_frames: 5, keep_dir: " + kept + ", learn_at_start: false}");
-  auto file = [&](const std::string& camera) { return fs::path(kept) / ("background-" + camera + ".bin"); };
+  const std::string taught = Write(
+      "taught.yaml", true, "{learn_frames: 5, keep_dir: " + kept + ", learn_at_start: false}");
+  auto file = [&](const std::string& camera) {
+    return fs::path(kept) / ("background-" + camera + ".bin");
+  };
 
   // Never taught: every camera sees nothing, and says why.
   const auto untaught = Daemon("--config " + taught + " --duration 1.5");
   EXPECT_EQ(untaught.code, 0) << untaught.err;
-  EXPECT_TRUE(std::regex_search(untaught.err,
-                                std::regex("cycle [0-9]+ DEGRADED .* cam0 failed [0-9]+ fps "
-                                           "\\(unlearned\\) cam1 failed [0-9]+ fps \\(unlearned\\)")))
+  EXPECT_TRUE(std::regex_search(
+      untaught.err, std::regex("cycle [0-9]+ DEGRADED .* cam0 failed [0-9]+ fps "
+                               "\\(unlearned\\) cam1 failed [0-9]+ fps \\(unlearned\\)")))
       << untaught.err;
   EXPECT_NE(untaught.err.find("--learn-background"), std::string::npos) << untaught.err;
   EXPECT_FALSE(fs::exists(file("cam0"))) << "learned at start although learn_at_start is false";
@@ -85,7 +87,8 @@ TEST_F(LearnBackgroundCliTest, TaughtOnPurposeAndNeverLearnedAtStart) {
   EXPECT_EQ(one_gone.code, 0) << one_gone.err;
   EXPECT_TRUE(std::regex_search(
       one_gone.err,
-      std::regex("DEGRADED .* cam0 ok [0-9]+ fps.* cam1 failed [0-9]+ fps \\(unlearned\\) cam2 ok")))
+      std::regex(
+          "DEGRADED .* cam0 ok [0-9]+ fps.* cam1 failed [0-9]+ fps \\(unlearned\\) cam2 ok")))
       << one_gone.err;
   EXPECT_FALSE(fs::exists(file("cam1")));
 
