@@ -1146,12 +1146,97 @@ std::string ExactNumber(double value) {
   return ec == std::errc() ? std::string(buf, end) : FormatNumber(value);
 }
 
+/// Relative tolerance of the comparison of a camera block with the camera of
+/// a scene or a recording (both written to round-trip exactly): of the
+/// largest entry of the matrix (at least 1), so that zeros compare absolutely.
+constexpr double kSceneCameraTolerance = 1e-9;
+
+/// "name[i] a here, b <there>" for the first entry of `a` and `b` that
+/// differ by more than the tolerance; empty when none does.
+std::string FirstDifference(const std::string& name, std::span<const double> a,
+                            std::span<const double> b, const std::string& there) {
+  double scale = 1.0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    scale = std::max({scale, std::abs(a[i]), std::abs(b[i])});
+  }
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (std::abs(a[i] - b[i]) <= kSceneCameraTolerance * scale) continue;
+    return name + "[" + std::to_string(i) + "] " + ExactNumber(a[i]) + " here, " +
+           ExactNumber(b[i]) + " " + there;
+  }
+  return "";
+}
+
+/// A sim source renders the scene's camera (a replay source plays what a
+/// recording's camera saw) while the pipeline projects with the config's
+/// camera block: they must be the same camera, or every frame is the wrong
+/// size (corrupt) or the silhouettes land in the wrong place (unsafe: a
+/// person seen by one camera is carved with another's pose). Records each
+/// difference at the config key that sets it. `of_scene` names the other
+/// camera ("camera 'cam0' of scene 'x.yaml'"), `there` is where it is ("in
+/// the scene").
+void CheckSameCamera(Reader& r, const Item& entry, const Entries& e,
+                     const geometry::CameraModel& config_camera,
+                     const geometry::CameraModel& scene_camera, const std::string& of_scene,
+                     const std::string& there) {
+  auto error_at = [&](std::initializer_list<const char*> keys, const std::string& problem) {
+    for (const char* key : keys) {
+      if (const auto it = e.find(key); it != e.end()) {
+        r.Error(it->second.line, it->second.path, problem);
+        return;
+      }
+    }
+    r.Error(entry.line, Join(entry.path, *keys.begin()), problem);
+  };
+  for (const auto& [key, mine, theirs] :
+       {std::tuple{"width", config_camera.width, scene_camera.width},
+        std::tuple{"height", config_camera.height, scene_camera.height}}) {
+    if (mine != theirs) {
+      error_at({key}, "is " + std::to_string(mine) + " but " + of_scene + " has " +
+                          std::to_string(theirs) + ": every frame would be the wrong size");
+    }
+  }
+  // Entries row-major, as the camera block writes them.
+  auto values = [](const auto& m) {
+    std::vector<double> out;
+    for (int i = 0; i < m.rows(); ++i) {
+      for (int j = 0; j < m.cols(); ++j) out.push_back(m(i, j));
+    }
+    return out;
+  };
+  const std::string k =
+      FirstDifference("K", values(config_camera.K), values(scene_camera.K), there);
+  const std::string d =
+      FirstDifference("distortion", config_camera.distortion, scene_camera.distortion, there);
+  const std::string rot =
+      FirstDifference("R", values(config_camera.R_CW), values(scene_camera.R_CW), there);
+  const std::string t =
+      FirstDifference("t", values(config_camera.t_CW), values(scene_camera.t_CW), there);
+  // Each difference at the key that sets it: K, R and t come from P in that
+  // form, and the pose from position and look_at in that one.
+  const std::string differs = "differs from " + of_scene + ": ";
+  if (!k.empty()) error_at({"K", "P"}, differs + k);
+  if (!d.empty()) error_at({"distortion"}, differs + d);
+  if (e.count("R") != 0 || e.count("t") != 0) {
+    if (!rot.empty()) error_at({"R"}, differs + rot);
+    if (!t.empty()) error_at({"t"}, differs + t);
+  } else if (!rot.empty() || !t.empty()) {
+    error_at({"position", "P"}, "the pose " + differs +
+                                    (rot.empty() ? t
+                                     : t.empty() ? rot
+                                                 : rot + "; " + t));
+  }
+}
+
 /// A replay source's recording, opened as the replay will: its manifest (and
 /// frames index) must read, hold the camera and at least one frame, and the
-/// first frame must decode to the camera block's size. Errors are recorded
-/// at the `directory` key, with the recording's own file and line.
-void CheckRecording(Reader& r, const Item& directory, const ReplaySourceConfig& replay,
-                    const geometry::CameraModel& model) {
+/// first frame must decode to the camera block's size, and the recording's
+/// calibration of the camera (its cameras.yaml) must be the camera block's
+/// (CheckSameCamera). Errors are recorded at the `directory` key, with the
+/// recording's own file and line, or at the camera block's key that differs.
+/// `model` is null when the camera block has errors of its own.
+void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Item& directory,
+                    const ReplaySourceConfig& replay, const geometry::CameraModel* model) {
   try {
     const capture::RecordingCamera rec =
         capture::ReadRecordingCamera(replay.directory, replay.camera);
@@ -1185,91 +1270,40 @@ void CheckRecording(Reader& r, const Item& directory, const ReplaySourceConfig& 
     const bool rgb = frame.kind == capture::FrameKind::kRgb;
     const int w = rgb ? frame.rgb.width : frame.grey.width;
     const int h = rgb ? frame.rgb.height : frame.grey.height;
-    // A camera block with errors of its own (reported) leaves the model empty.
-    if (model.width > 0 && (w != model.width || h != model.height)) {
+    if (model == nullptr) return;
+    if (w != model->width || h != model->height) {
       r.Error(directory.line, directory.path,
               "camera '" + replay.camera + "' was recorded at " + std::to_string(w) + "x" +
-                  std::to_string(h) + ", the camera block is " + std::to_string(model.width) + "x" +
-                  std::to_string(model.height) + " (" + path + ")");
+                  std::to_string(h) + ", the camera block is " + std::to_string(model->width) +
+                  "x" + std::to_string(model->height) + " (" + path + ")");
+      return;
     }
-  } catch (const ConfigError& e) {
-    r.Error(directory.line, directory.path, std::string("bad recording: ") + e.what());
-  }
-}
-
-/// Relative tolerance of the comparison of a camera block with its scene's
-/// camera: of the largest entry of the matrix (at least 1), so that zeros
-/// compare absolutely.
-constexpr double kSceneCameraTolerance = 1e-9;
-
-/// "name[i] a here, b in the scene" for the first entry of `a` and `b` that
-/// differ by more than the tolerance; empty when none does.
-std::string FirstDifference(const std::string& name, std::span<const double> a,
-                            std::span<const double> b) {
-  double scale = 1.0;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    scale = std::max({scale, std::abs(a[i]), std::abs(b[i])});
-  }
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    if (std::abs(a[i] - b[i]) <= kSceneCameraTolerance * scale) continue;
-    return name + "[" + std::to_string(i) + "] " + ExactNumber(a[i]) + " here, " +
-           ExactNumber(b[i]) + " in the scene";
-  }
-  return "";
-}
-
-/// A sim source renders the scene's camera while the pipeline projects with
-/// the config's camera block: they must be the same camera, or every frame is
-/// the wrong size (corrupt) or the silhouettes land in the wrong place
-/// (unsafe). Records each difference at the config key that sets it.
-void CheckSimCamera(Reader& r, const Item& entry, const Entries& e,
-                    const geometry::CameraModel& config_camera,
-                    const geometry::CameraModel& scene_camera, const std::string& scene_text) {
-  const std::string of_scene = "camera '" + scene_camera.name + "' of scene '" + scene_text + "'";
-  auto error_at = [&](std::initializer_list<const char*> keys, const std::string& problem) {
-    for (const char* key : keys) {
-      if (const auto it = e.find(key); it != e.end()) {
-        r.Error(it->second.line, it->second.path, problem);
-        return;
-      }
+    const std::string cameras_file =
+        (std::filesystem::path(replay.directory) / "cameras.yaml").string();
+    if (!std::filesystem::is_regular_file(cameras_file)) {
+      r.Error(directory.line, directory.path,
+              "recording '" + replay.directory +
+                  "' has no cameras.yaml: the calibration its frames were taken with cannot be "
+                  "checked against this camera block (hullguard synth and record write one)");
+      return;
     }
-    r.Error(entry.line, Join(entry.path, *keys.begin()), problem);
-  };
-  for (const auto& [key, mine, theirs] :
-       {std::tuple{"width", config_camera.width, scene_camera.width},
-        std::tuple{"height", config_camera.height, scene_camera.height}}) {
-    if (mine != theirs) {
-      error_at({key}, "is " + std::to_string(mine) + " but " + of_scene + " has " +
-                          std::to_string(theirs) + ": every frame would be the wrong size");
+    const std::vector<geometry::CameraModel> recorded = geometry::LoadCamerasFile(cameras_file);
+    const auto it = std::find_if(recorded.begin(), recorded.end(),
+                                 [&](const auto& c) { return c.name == replay.camera; });
+    if (it == recorded.end()) {
+      r.Error(directory.line, directory.path,
+              cameras_file + " has no camera '" + replay.camera + "'");
+      return;
     }
-  }
-  // Entries row-major, as the camera block writes them.
-  auto values = [](const auto& m) {
-    std::vector<double> out;
-    for (int i = 0; i < m.rows(); ++i) {
-      for (int j = 0; j < m.cols(); ++j) out.push_back(m(i, j));
-    }
-    return out;
-  };
-  const std::string k = FirstDifference("K", values(config_camera.K), values(scene_camera.K));
-  const std::string d =
-      FirstDifference("distortion", config_camera.distortion, scene_camera.distortion);
-  const std::string rot =
-      FirstDifference("R", values(config_camera.R_CW), values(scene_camera.R_CW));
-  const std::string t = FirstDifference("t", values(config_camera.t_CW), values(scene_camera.t_CW));
-  // Each difference at the key that sets it: K, R and t come from P in that
-  // form, and the pose from position and look_at in that one.
-  const std::string differs = "differs from " + of_scene + ": ";
-  if (!k.empty()) error_at({"K", "P"}, differs + k);
-  if (!d.empty()) error_at({"distortion"}, differs + d);
-  if (e.count("R") != 0 || e.count("t") != 0) {
-    if (!rot.empty()) error_at({"R"}, differs + rot);
-    if (!t.empty()) error_at({"t"}, differs + t);
-  } else if (!rot.empty() || !t.empty()) {
-    error_at({"position", "P"}, "the pose " + differs +
-                                    (rot.empty() ? t
-                                     : t.empty() ? rot
-                                                 : rot + "; " + t));
+    CheckSameCamera(r, entry, e, *model, *it,
+                    "camera '" + replay.camera + "' of recording '" + replay.directory + "'",
+                    "in the recording");
+  } catch (const ConfigError& error) {
+    r.Error(directory.line, directory.path, std::string("bad recording: ") + error.what());
+  } catch (const YAML::Exception& error) {
+    // The recording's own YAML, converted by yaml-cpp: its line, not the config's.
+    r.Error(directory.line, directory.path,
+            "bad recording '" + replay.directory + "': " + std::string(error.what()));
   }
 }
 
@@ -1401,7 +1435,10 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache*
                     "scene '" + scene_text + "' has no camera '" + sim.camera + "' (it has " +
                         OrList(names, " and ") + ")");
           } else if (ok) {
-            CheckSimCamera(r, entry, e, camera.model, scene_camera->model, scene_text);
+            CheckSameCamera(
+                r, entry, e, camera.model, scene_camera->model,
+                "camera '" + scene_camera->model.name + "' of scene '" + scene_text + "'",
+                "in the scene");
           }
         }
       }
@@ -1415,7 +1452,7 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache*
       const auto dir_it = e_src.find("directory");
       if (!replay.directory.empty() && dir_it != e_src.end() &&
           std::filesystem::is_directory(replay.directory)) {
-        CheckRecording(r, dir_it->second, replay, camera.model);
+        CheckRecording(r, entry, e, dir_it->second, replay, ok ? &camera.model : nullptr);
       }
       camera.source = replay;
       break;

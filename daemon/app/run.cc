@@ -40,6 +40,10 @@ std::atomic<bool> g_dump{false};
 
 void OnDumpSignal(int /*signal*/) { g_dump.store(true); }
 
+std::atomic<bool> g_hangup{false};
+
+void OnHangupSignal(int /*signal*/) { g_hangup.store(true); }
+
 /// The black box of `config` (blackbox.seconds > 0), logging every dump.
 std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
   std::error_code ec;
@@ -94,11 +98,13 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
   // An aborted update says how far it refined: cells of that size everywhere.
   char aborted[96] = "";
   if (!s.complete) {
+    // Aborted at the deadline, or (only) short of nodes: said below.
+    const char* what = s.aborted ? "aborted" : "incomplete";
     if (s.refined_cell_m > 0.0) {
-      std::snprintf(aborted, sizeof(aborted), " (aborted, refined to %.1f cm)",
+      std::snprintf(aborted, sizeof(aborted), " (%s, refined to %.1f cm)", what,
                     s.refined_cell_m * 100.0);
     } else {
-      std::snprintf(aborted, sizeof(aborted), " (aborted)");
+      std::snprintf(aborted, sizeof(aborted), " (%s)", what);
     }
   }
   if (s.health.unsplit_nodes > 0) {
@@ -171,6 +177,12 @@ void InstallStopSignals() {
   std::signal(SIGINT, OnSignal);
   // Also without a black box: SIGUSR1's default action would end the daemon.
   std::signal(SIGUSR1, OnDumpSignal);
+  // SIGHUP asks a daemon to reload, which this one does not: it goes on
+  // monitoring and says so (its default action would end the stream, and
+  // systemd would not restart a daemon ended by it). A closed pipe on stdout
+  // or stderr is an error of that write, not the end of the daemon.
+  std::signal(SIGHUP, OnHangupSignal);
+  std::signal(SIGPIPE, SIG_IGN);
 }
 
 bool StopRequested() { return g_stop.load(); }
@@ -274,6 +286,11 @@ int RunPipeline(const Config& config, double duration_s) {
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     const auto now = std::chrono::steady_clock::now();
     if (duration_s > 0 && now - start >= std::chrono::duration<double>(duration_s)) break;
+    if (g_hangup.exchange(false)) {
+      log::Warn(
+          "SIGHUP ignored: the config is not reloaded; restart to apply a change "
+          "(systemctl restart hullguardd)");
+    }
     if (g_dump.exchange(false)) {
       if (!black_box) {
         log::Warn("SIGUSR1: the black box is off (blackbox.seconds: 0)");

@@ -636,6 +636,7 @@ void AravisSource::ControlLoop() {
         }
         last_error.clear();
         connected_.store(true);
+        failing_.store(false);
         next_trigger = now;
         offered_.store(current, std::memory_order_release);
       } else {
@@ -646,6 +647,7 @@ void AravisSource::ControlLoop() {
           last_error = error;
           last_error_log = now;
         }
+        failing_.store(true);
         next_attempt = now + backoff;
         backoff = std::min(backoff * 2, kMaxBackoff);
       }
@@ -717,6 +719,7 @@ bool AravisSource::Next(Frame* frame, milliseconds timeout) {
         // The watchdog: hand the camera to the control thread for release and
         // reopening. The lock only orders the wake-up; it is taken once per loss.
         connected_.store(false);
+        failing_.store(true);
         returned_.store(active_, std::memory_order_release);
         active_ = nullptr;
         {

@@ -123,6 +123,9 @@ class AravisSource : public CameraSource {
   [[nodiscard]] Stats stats() const;
   /// The counters of stats() that go into the camera's status. Thread-safe.
   [[nodiscard]] TransportStats transport_stats() const override;
+  /// The last attempt to open the camera failed, or its connection was lost,
+  /// and no connection stands since.
+  [[nodiscard]] bool failing() const override { return failing_.load(std::memory_order_relaxed); }
 
  private:
   struct Session;
@@ -168,6 +171,7 @@ class AravisSource : public CameraSource {
   std::atomic<std::uint64_t> resends_{0};
   std::atomic<std::uint64_t> connections_{0};
   std::atomic<bool> connected_{false};
+  std::atomic<bool> failing_{false};  // failing().
 };
 
 }  // namespace hg::capture

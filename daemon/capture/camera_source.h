@@ -54,6 +54,10 @@ class CameraSource {
   [[nodiscard]] virtual std::uint64_t corrupt_frames() const { return 0; }
   /// Transport counters; may be called from any thread while Next() runs.
   [[nodiscard]] virtual TransportStats transport_stats() const { return {}; }
+  /// The source has lost its camera, or could not open it, and is retrying:
+  /// no frames until it is back (the camera's status says `failed`). Any
+  /// thread.
+  [[nodiscard]] virtual bool failing() const { return false; }
   /// The pipeline's background model of this camera holds a learned
   /// background (learning ended, or a saved one was taken up). Called by the
   /// pipeline's silhouette worker after each frame once that holds; any

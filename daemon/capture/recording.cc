@@ -64,7 +64,10 @@ YAML::Node CameraEntry(const YAML::Node& root, const std::string& manifest,
   const YAML::Node cameras = root["cameras"];
   if (!cameras || !cameras.IsSequence()) Fail(manifest, root, "cameras", "missing list");
   for (const YAML::Node& c : cameras) {
-    if (c.IsMap() && c["name"] && c["name"].as<std::string>() == camera) return c;
+    if (!c.IsMap() || !c["name"] || !c["name"].IsScalar()) {
+      Fail(manifest, c, "cameras", "every entry needs a name");
+    }
+    if (c["name"].Scalar() == camera) return c;
   }
   Fail(manifest, cameras, "cameras", "the recording has no camera '" + camera + "'");
 }

@@ -104,6 +104,8 @@ class V4l2Source : public CameraSource {
 
   bool Next(Frame* frame, std::chrono::milliseconds timeout) override;
   void Stop() override { stopped_.store(true); }
+  /// Lost and reopening (the constructor opened it; it throws when it cannot).
+  [[nodiscard]] bool failing() const override { return !streaming(); }
   [[nodiscard]] std::uint64_t corrupt_frames() const override {
     return corrupt_.load(std::memory_order_relaxed);
   }

@@ -254,7 +254,22 @@ class CameraParser {
       throw ConfigError::At(file_, LineOf(Key("name")),
                             Path("name") + ": expected a non-empty string");
     }
-    return v.Scalar();
+    // Names become file and folder names (masks/<camera>/, kept
+    // backgrounds, recordings): nothing that could leave its folder or
+    // collide with another spelling of the same path.
+    const std::string& name = v.Scalar();
+    const bool file_safe =
+        name.front() != '.' && std::all_of(name.begin(), name.end(), [](char ch) {
+          return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
+                 ch == '_' || ch == '-' || ch == '.';
+        });
+    if (!file_safe) {
+      throw ConfigError::At(file_, LineOf(Key("name")),
+                            Path("name") + ": '" + name +
+                                "' cannot name the camera's files and folders: letters, digits, "
+                                "'_', '-' and '.', not starting with '.'");
+    }
+    return name;
   }
 
   int ParseSide(const std::string& key, int absent) const {

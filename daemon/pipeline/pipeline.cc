@@ -199,6 +199,13 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
   bool learning = false;  // The mask is the background model's learning one.
   if (frame.kind != capture::FrameKind::kMask) {
     if (c.unlearned) return;  // Stays failed: see below.
+    const bool rgb = frame.kind == capture::FrameKind::kRgb;
+    const int width = rgb ? frame.rgb.width : frame.grey.width;
+    const int height = rgb ? frame.rgb.height : frame.grey.height;
+    if (width != c.model.width || height != c.model.height) {
+      c.corrupt.fetch_add(1, std::memory_order_relaxed);  // Not this camera's size.
+      return;
+    }
     // A frozen, black, saturated or moved camera certifies nothing: its
     // frames are dropped and fusion counts it as seeing nothing.
     const capture::CameraFault fault = c.health_monitor.Check(frame);
@@ -415,10 +422,11 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
     }
     CameraHealth& h = health.cameras[i];
     if (h.name != c.model.name) h.name = c.model.name;
-    h.state = live         ? CameraState::kOk
-              : fault != 0 ? CameraState::kFailed
-              : c.seen     ? CameraState::kStale
-                           : CameraState::kStarting;
+    const bool source_failing = c.source != nullptr && c.source->failing();
+    h.state = live                           ? CameraState::kOk
+              : fault != 0 || source_failing ? CameraState::kFailed
+              : c.seen                       ? CameraState::kStale
+                                             : CameraState::kStarting;
     h.fault = fault;
     h.learning = c.current != nullptr && c.current->learning;
     h.fps = c.fps;
@@ -504,6 +512,7 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
   // Complete: refined to the finest cell everywhere, which a full node store
   // (nodes left unsplit, occupied) also prevents.
   snapshot->complete = !stats.aborted && stats.nodes_unsplit == 0;
+  snapshot->aborted = stats.aborted;
   snapshot->refined_cell_m = RefinedCellSize(options_.bounds, stats.refined_level);
   static_assert(kRootsPerAxis * kRootsPerAxis * kRootsPerAxis == octree::Octree::kNumRoots);
   const std::span<const std::uint8_t> root_levels = tree_->RootLevels();

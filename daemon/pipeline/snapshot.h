@@ -100,7 +100,10 @@ struct OccupancySnapshot {
   /// time of the frames used; older frames were dilated by the distance a
   /// person can move since their own capture.
   std::int64_t stamp_ns = 0;
-  bool complete = true;  ///< False when the update was aborted (still conservative).
+  /// False when the update was aborted, or the node store could not split
+  /// some nodes (health.unsplit_nodes): still conservative.
+  bool complete = true;
+  bool aborted = false;  ///< The update was aborted at its deadline.
   /// The occupancy is exact down to octree cells of this size (m, longest
   /// side): such a cell that needed finer work is listed whole. The finest
   /// cell size when complete; 0 when an abort left whole regions unvisited

@@ -48,9 +48,9 @@ cameras:
   - name: rec
     width: 320
     height: 180
-    K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]
-    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
-    t: [0, 0, 2]
+    K: [180.59645105620496, 0, 159.5, 0, 180.59645105620496, 89.5, 0, 0, 1]
+    R: [0.70710678118654757, 0.70710678118654757, -0, 0.44150314702736099, -0.44150314702736099, -0.78112095243302315, -0.55233592239228524, 0.55233592239228524, -0.62437973835649652]
+    t: [-2.8284271247461903, 0.78112095243302271, 4.7885123010878994]
     source: {type: replay, directory: ../tests/data/small_cell_recording, camera: cam2, realtime: false}
     timeout_ms: 500
   - name: gige
@@ -440,10 +440,11 @@ const Mistake kMistakes[] = {
     {"topic_prefix: cell7", "topic_prefix: \"cell 7\"", 47, "dds.topic_prefix",
      "not a DDS topic name prefix"},
     {"topic_prefix: cell7", "topic_prefix: 7cell", 47, "dds.topic_prefix", "not starting"},
-    {"K: [500, 0, 319.5, 0, 500, 239.5, 0, 0, 1]\n    R:",
-     "K: [1e-9, 0, 319.5, 0, 1e-9, 239.5, 0, 0, 1]\n    R:", 17, "cameras[1].K",
+    {"K: [180.59645105620496, 0, 159.5, 0, 180.59645105620496, 89.5, 0, 0, 1]\n    R:",
+     "K: [1e-9, 0, 159.5, 0, 1e-9, 89.5, 0, 0, 1]\n    R:", 17, "cameras[1].K",
      "focal lengths must be within [1, 1e6] px"},
-    {"t: [0, 0, 2]", "t: [0, 0, 1e300]", 19, "cameras[1].t", "more than 1e6 m"},
+    {"t: [-2.8284271247461903, 0.78112095243302271, 4.7885123010878994]",
+     "t: [-2.8284271247461903, 0.78112095243302271, 1e300]", 19, "cameras[1].t", "more than 1e6 m"},
     {"distortion: [-0.1, 0.01, 0, 0, 0]", "distortion: [-0.1, 1e30, 0, 0, 0]", 40,
      "cameras[3].distortion", "within [-1000, 1000]"},
     {"max_speed_mps: 1.6", "max_speed_mps: -1", 49, "motion.max_speed_mps", "must be in 0 .. 20"},
@@ -754,6 +755,22 @@ TEST(ConfigReplayTest, TheRecordingIsOpenedAtValidation) {
             std::string::npos)
       << error;
 
+  // The first camera replays what another camera of the recording saw: its
+  // silhouettes would be carved with the wrong pose (people certified free).
+  const std::string swapped = Replace(config, "directory: rec}}", "directory: rec, camera: cam1}}");
+  error = ErrorIn(dir, swapped);
+  ASSERT_EQ(Lines(error).size(), 1u) << error;
+  EXPECT_NE(error.find("c.yaml:8: cameras[0].position: the pose differs from camera 'cam1' of "
+                       "recording '"),
+            std::string::npos)
+      << error;
+  EXPECT_NE(error.find(" in the recording"), std::string::npos) << error;
+  // Another focal length.
+  error = ErrorIn(dir, Replace(config, "K: &k [180.59645105620495,", "K: &k [181,"));
+  EXPECT_NE(error.find("c.yaml:9: cameras[0].K: differs from camera 'cam0' of recording '"),
+            std::string::npos)
+      << error;
+
   // A loop must keep two frames or more; playing from memory is just a flag.
   EXPECT_EQ(ErrorIn(dir, Replace(config, "directory: rec}}",
                                  "directory: rec, loop: true, preload: true}}")),
@@ -775,6 +792,14 @@ TEST(ConfigReplayTest, TheRecordingIsOpenedAtValidation) {
                        "cannot be read: "),
             std::string::npos)
       << error;
+
+  // Without the calibration the frames were taken with, nothing can be checked.
+  fs::rename(dir.Path("rec/cameras.yaml"), dir.Path("rec/cameras.yaml.away"));
+  error = ErrorIn(dir, config);
+  EXPECT_NE(error.find("c.yaml:10: cameras[0].source.directory: recording '"), std::string::npos)
+      << error;
+  EXPECT_NE(error.find("' has no cameras.yaml"), std::string::npos) << error;
+  fs::rename(dir.Path("rec/cameras.yaml.away"), dir.Path("rec/cameras.yaml"));
 
   // The manifest does not parse: every camera says so, and the daemon exits 2.
   std::ofstream(dir.Path("rec/manifest.yaml")) << "garbage: [\n";

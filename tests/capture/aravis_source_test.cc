@@ -372,12 +372,20 @@ TEST(AravisSourceTest, AbsentCameraIsNoErrorAndARestartedCameraIsReconnected) {
   EXPECT_FALSE(source.Next(&frame, milliseconds(50)));
   EXPECT_LT(Clock::now() - before, milliseconds(1000));  // Not blocked by the opening.
   EXPECT_FALSE(source.stats().connected);
+  // Once an attempt to open it failed, the source says it is failing (the
+  // camera's status then reads `failed`, not `starting`).
+  for (const Clock::time_point end = Clock::now() + milliseconds(10000);
+       !source.failing() && Clock::now() < end;) {
+    std::this_thread::sleep_for(milliseconds(10));
+  }
+  EXPECT_TRUE(source.failing());
 
   camera.emplace("HGPROC");
   ASSERT_TRUE(camera->started());
   ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(20000)));
   ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(5000)));
   EXPECT_TRUE(source.stats().connected);
+  EXPECT_FALSE(source.failing());
   EXPECT_EQ(frame.grey.width, kSensor);
 
   // The camera dies: no frame, and the source says so within the frame
@@ -397,6 +405,7 @@ TEST(AravisSourceTest, AbsentCameraIsNoErrorAndARestartedCameraIsReconnected) {
   }
   EXPECT_LE(frames_after_kill, 2);
   EXPECT_LT(noticed, options.frame_timeout + milliseconds(1000));
+  EXPECT_TRUE(source.failing());
   EXPECT_FALSE(source.Next(&frame, milliseconds(50)));
 
   // The camera comes back: the source reopens it by itself.
@@ -407,6 +416,7 @@ TEST(AravisSourceTest, AbsentCameraIsNoErrorAndARestartedCameraIsReconnected) {
   const AravisSource::Stats stats = source.stats();
   EXPECT_TRUE(stats.connected);
   EXPECT_GE(stats.reconnects, 1u);
+  EXPECT_FALSE(source.failing());
   EXPECT_EQ(frame.grey.width, kSensor);
 }
 

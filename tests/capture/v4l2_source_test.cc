@@ -702,6 +702,7 @@ TEST_P(V4l2VanishTest, CameraThatVanishesIsReopenedAndFramesFlowAgain) {
   const int opens_before = camera->Count("open");
   EXPECT_FALSE(source.Next(&frame, milliseconds(500)));
   EXPECT_FALSE(source.streaming());
+  EXPECT_TRUE(source.failing());  // Its status: failed while it reopens.
   EXPECT_EQ(source.disconnects(), 1u);
   EXPECT_FALSE(camera->open);  // Everything released: unmapped and closed.
   EXPECT_EQ(camera->Mapped(), 0);
@@ -713,6 +714,7 @@ TEST_P(V4l2VanishTest, CameraThatVanishesIsReopenedAndFramesFlowAgain) {
   ExpectGreyFrame(frame, 10);
   EXPECT_EQ(frame.index, 2u);  // Indices go on across the reconnection.
   EXPECT_TRUE(source.streaming());
+  EXPECT_FALSE(source.failing());
   EXPECT_EQ(source.reconnects(), 1u);
   EXPECT_EQ(camera->Count("open") - opens_before, 3);
   ASSERT_TRUE(source.Next(&frame, milliseconds(500)));

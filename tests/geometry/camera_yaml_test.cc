@@ -111,7 +111,7 @@ TEST(CameraYamlTest, WriteThenLoadIsExact) {
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   std::vector<CameraModel> cams;
-  for (const char* name : {"left", "cam #2", "3", "yes"}) {
+  for (const char* name : {"left", "cam.2-b_x", "3", "yes"}) {
     CameraModel c;
     c.name = name;
     c.width = 1920;
@@ -332,6 +332,19 @@ TEST(CameraYamlErrorTest, UnknownDuplicateAndMissingKeys) {
               {"cameras[0]: duplicate key 'width'"});
   ExpectError(Replace(kCam0, "  - name: cam0\n    width: 640\n", "  - width: 640\n"), 2,
               {"cameras[0]: missing key 'name'"});
+}
+
+// Names become file and folder names (synth's masks/<camera>/, kept
+// backgrounds, recordings): nothing that could leave the folder or spell a
+// path two ways.
+TEST(CameraYamlErrorTest, NamesThatCannotNameAFile) {
+  for (const char* name : {"../x", "a/b", "/abs", ".hidden", "cam #2", "caf\xc3\xa9"}) {
+    SCOPED_TRACE(name);
+    ExpectError(Replace(kCam0, "  - name: cam0\n", std::string("  - name: \"") + name + "\"\n"), 2,
+                {"cameras[0].name: '" + std::string(name) +
+                 "' cannot name the camera's files and folders: letters, digits, '_', '-' and '.', "
+                 "not starting with '.'"});
+  }
 }
 
 TEST(CameraYamlErrorTest, KRtAndPTogether) {

@@ -593,6 +593,36 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   fs::remove_all(top);
 }
 
+// An image frame of another size than its camera's (a damaged recording, a
+// camera reconfigured behind the daemon's back) is counted corrupt and
+// skipped, for RGB and Mono8 frames alike, before the background model or the
+// health checks see it; the next good frame is used as usual.
+TEST(PipelineTest, AnImageFrameOfTheWrongSizeIsCountedCorruptAndSkipped) {
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  StillColourFrames frames(*scene);
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 6;
+  options.publish_depth = 6;
+  options.background.learn_frames = 2;
+  Pipeline pipeline(options, FedCameras(*scene), {}, nullptr);
+  for (int i = 0; i < 4; ++i) ASSERT_NE(frames.Cycle(pipeline, i, /*present=*/false), nullptr);
+  const int w = scene->cameras[0].model.width, h = scene->cameras[0].model.height;
+  capture::Frame bad;
+  bad.kind = capture::FrameKind::kRgb;
+  bad.rgb = common::ImageRgb8(w / 2, h);
+  bad.stamp_ns = 2'000'000'000LL;
+  pipeline.Feed(0, bad);
+  bad.kind = capture::FrameKind::kMono;
+  bad.grey = common::ImageU8(w, h + 8);
+  pipeline.Feed(0, bad);
+  const auto s = frames.Cycle(pipeline, 5, /*present=*/false);
+  ASSERT_NE(s, nullptr);
+  EXPECT_EQ(s->health.cameras[0].corrupt, 2u);
+  EXPECT_EQ(s->health.cameras[0].state, CameraState::kOk);
+  EXPECT_EQ(s->health.cameras[1].corrupt, 0u);
+}
+
 // An octree node store too small for the scene (octree.max_nodes): the
 // published grid stays conservative (no point inside a person free), and the
 // status is degraded with the unsplit nodes counted; with the default store

@@ -417,7 +417,18 @@ TEST_F(DaemonE2E, SigtermDuringStartUpAndAtALowRateEndsCleanlyWithinASecond) {
   for (const double after_s : {2.3, 2.8}) {
     fs::create_directories(dir_ / "slow");
     testing::HullguarddRun daemon(g_daemon, config, 60.0, dir_ / "slow");
-    std::this_thread::sleep_for(std::chrono::duration<double>(after_s));
+    std::this_thread::sleep_for(1500ms);
+    // Neither a hangup (it does not reload) nor a closed pipe ends it.
+    kill(daemon.pid(), SIGHUP);
+    kill(daemon.pid(), SIGPIPE);
+    // Said once its main loop runs (a loaded machine may still be starting it up).
+    for (const auto end = Clock::now() + 10s;
+         Clock::now() < end && daemon.Log().find("SIGHUP ignored") == std::string::npos;) {
+      std::this_thread::sleep_for(10ms);
+    }
+    EXPECT_NE(daemon.Log().find("SIGHUP ignored"), std::string::npos) << daemon.Log();
+    std::this_thread::sleep_for(std::chrono::duration<double>(after_s - 1.5));
+    EXPECT_TRUE(daemon.Running()) << daemon.Log();
     Clock::duration took{};
     EXPECT_EQ(daemon.Terminate(1s, &took), 0) << daemon.Log();
     EXPECT_LT(took, 1s) << "after " << after_s << " s";

@@ -177,6 +177,40 @@ TEST_F(SynthCliTest, MeshOutsideTheSceneFolderIsRefused) {
   EXPECT_FALSE(fs::exists(dir_ / "up"));
 }
 
+// A relative mesh path at a name synth writes itself (its combined
+// obstacles.obj, or under masks/) would be overwritten or removed: refused,
+// before anything is written.
+TEST_F(SynthCliTest, MeshAtANameSynthWritesIsRefused) {
+  geometry::WriteObj(Path("obstacles.obj"), geometry::TriangleMesh::Box(Eigen::Vector3d(1, 1, 0),
+                                                                        Eigen::Vector3d(2, 2, 1)));
+  std::string scene = kScene;
+  scene.replace(scene.find("people:"), 0, "  - {name: box, mesh: {file: obstacles.obj}}\n");
+  std::ofstream(Path("clash.yaml")) << scene;
+  const auto r =
+      Hullguard("synth --scene " + Path("clash.yaml") + " --frames 1 --out " + Path("clash"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("mesh file 'obstacles.obj' has a name synth writes its own output under"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "clash"));
+}
+
+// A camera name is a folder name in the output: one that would leave it is
+// refused with the scene's file and line.
+TEST_F(SynthCliTest, CameraNamesThatCannotNameAFolderAreRefused) {
+  std::string scene = kScene;
+  scene.replace(scene.find("{name: b,"), 9, "{name: ../../b,");
+  std::ofstream(Path("escape.yaml")) << scene;
+  const auto r =
+      Hullguard("synth --scene " + Path("escape.yaml") + " --frames 1 --out " + Path("esc"));
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("escape.yaml:5: cameras[1].name: '../../b' cannot name the camera's files"),
+            std::string::npos)
+      << r.err;
+  EXPECT_FALSE(fs::exists(dir_ / "esc"));
+  EXPECT_FALSE(fs::exists(dir_.parent_path().parent_path() / "b"));
+}
+
 // Writing over an earlier synth output leaves none of its frames behind.
 TEST_F(SynthCliTest, RerunIntoAnEarlierOutputLeavesNoStaleFrames) {
   const std::string scene = " --scene " + Path("tiny.yaml") + " --out " + Path("out");
@@ -270,6 +304,25 @@ TEST_F(SynthCliTest, BenchReportsStagesAndTheDenseBaselineAndNoTruthPointFree) {
   const long long written = std::stoll(JsonField(changes.out, "leaves_written_per_frame_median"));
   EXPECT_GT(written, 0) << changes.out;
   EXPECT_LE(written, std::stoll(JsonField(changes.out, "leaves"))) << changes.out;
+
+  // Whatever the scene is called, --json prints valid JSON.
+  std::string quoted = kScene;
+  quoted.replace(quoted.find("name: tiny"), 10, R"(name: "my \"cell\" \\ v2")");
+  std::ofstream(Path("quoted.yaml")) << quoted;
+  const auto q = Hullguard("bench --scene " + Path("quoted.yaml") +
+                           " --frames 2 --depth 5 --threads 1 --truth-points 10 --json");
+  ASSERT_EQ(q.code, 0) << q.err;
+  EXPECT_EQ(q.out.rfind(R"({"scene": "my \"cell\" \\ v2", "cameras": 2,)", 0), 0u) << q.out;
+  // A scene without cameras has nothing to benchmark: a clear error, no crash.
+  std::string no_cameras = kScene;
+  const std::size_t from = no_cameras.find("cameras:"), to = no_cameras.find("capture_offsets_ms");
+  no_cameras.erase(from, to - from);
+  no_cameras.replace(no_cameras.find("capture_offsets_ms: {b: 5}\n"), 27, "");
+  std::ofstream(Path("blind.yaml")) << no_cameras;
+  const auto blind = Hullguard("bench --scene " + Path("blind.yaml") + " --frames 2");
+  EXPECT_EQ(blind.code, 2) << blind.out << blind.err;
+  EXPECT_NE(blind.err.find("the scene has no cameras: nothing to benchmark"), std::string::npos)
+      << blind.err;
 
   const auto bad = Hullguard("bench --scene " + Path("tiny.yaml") + " --baseline voxels:3");
   EXPECT_EQ(bad.code, 2);

@@ -11,6 +11,7 @@
 
 #include "common/cli_checks.h"
 #include "common/config_error.h"
+#include "common/json.h"
 #include "hullguard/commands.h"
 #include "hullguard/dense_baseline.h"
 #include "hullguard/frame_stats.h"
@@ -95,6 +96,9 @@ int RunBench(const BenchFlags& f) {
                               " has only " + std::to_string(scene.cameras.size()) + " cameras");
   }
   if (f.cameras > 0) scene.cameras.resize(static_cast<std::size_t>(f.cameras));
+  if (scene.cameras.empty()) {
+    throw common::ConfigError(f.scene + ": the scene has no cameras: nothing to benchmark");
+  }
   const double dt = 1.0 / scene.rate_hz;
   SceneEngine engine(std::move(scene),
                      {f.depth, f.threads, f.boundary_coarsening, f.coarse_first_depth, f.key_level,
@@ -215,13 +219,13 @@ int RunBench(const BenchFlags& f) {
   const double ratio = oct.median > 0 ? dense_sum.median / oct.median : 0.0;
   if (f.json) {
     std::printf(
-        "{\"scene\": \"%s\", \"cameras\": %zu, \"width\": %d, \"height\": %d, \"frames\": %d, "
+        "{\"scene\": %s, \"cameras\": %zu, \"width\": %d, \"height\": %d, \"frames\": %d, "
         "\"depth\": %d, \"threads\": %d, \"deadline_ms\": %.3f,\n \"stages\": {\"render\": %s, "
         "\"quadtree\": %s, \"octree\": %s},\n \"octree_first_frame_ms\": %.3f, \"nodes\": %lld, "
         "\"leaves\": %lld, \"visited_per_frame_median\": %.0f, \"aborts\": %d, "
         "\"unsplit_nodes\": %lld, \"truth_points\": %lld, \"truth_points_free\": %lld",
-        s.name.c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames, f.depth, f.threads,
-        f.deadline_ms, JsonSummary(render).c_str(), JsonSummary(quad).c_str(),
+        common::JsonString(s.name).c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames,
+        f.depth, f.threads, f.deadline_ms, JsonSummary(render).c_str(), JsonSummary(quad).c_str(),
         JsonSummary(oct).c_str(), first_octree_ms, static_cast<long long>(tree.NumNodes()),
         static_cast<long long>(tree.NumLeaves()), Summarise(visited).median, aborts,
         static_cast<long long>(unsplit), static_cast<long long>(truth.points),

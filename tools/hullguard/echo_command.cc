@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/cli_checks.h"
+#include "common/json.h"
 #include "hullguard.h"
 #include "hullguard/commands.h"
 #include "hullguard/snapshot_picture.h"
@@ -194,23 +195,7 @@ double OccupiedVolumeM3(const hullguard_Occupancy& s) {
 }
 
 // Camera names come from the daemon's config; keep JSON valid whatever they hold.
-std::string JsonString(const char* s) {
-  std::string out = "\"";
-  for (; s != nullptr && *s != '\0'; ++s) {
-    const unsigned char c = static_cast<unsigned char>(*s);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += static_cast<char>(c);
-    } else if (c < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\u%04x", c);
-      out += buf;
-    } else {
-      out += static_cast<char>(c);
-    }
-  }
-  return out + "\"";
-}
+std::string JsonString(const char* s) { return common::JsonString(s != nullptr ? s : ""); }
 
 void PrintOccupancy(const hullguard_Occupancy& s, bool json) {
   if (json) {

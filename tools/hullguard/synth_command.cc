@@ -85,6 +85,16 @@ std::vector<FileCopy> SceneFiles(const sim::Scene& scene, const std::string& sce
                                   "' lies outside the scene's folder, so synth cannot copy it "
                                   "beside scene.yaml (use a path inside it or an absolute one)");
       }
+      // The names synth writes itself: a copy there would be overwritten
+      // (obstacles.obj) or removed with the frames.
+      const std::string first = to.begin()->string();
+      if (to == "obstacles.obj" || to == "cameras.yaml" || to == "manifest.yaml" ||
+          to == "scene.yaml" || to == "ground_truth.yaml" || first == "masks" ||
+          first == "colour") {
+        throw common::ConfigError(scene_file + ": mesh file '" + mesh->file +
+                                  "' has a name synth writes its own output under; rename it "
+                                  "(or give an absolute path)");
+      }
       files.push_back({mesh->loaded_from, to});
     }
   }

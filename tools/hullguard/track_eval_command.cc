@@ -19,6 +19,7 @@
 
 #include "common/cli_checks.h"
 #include "common/config_error.h"
+#include "common/json.h"
 #include "hullguard/commands.h"
 #include "hullguard/frame_stats.h"
 #include "hullguard/scene_engine.h"
@@ -463,7 +464,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
   };
   if (f.json) {
     std::printf(
-        "{\"scene\": \"%s\", \"frames\": %d, \"rate_hz\": %.3f, \"start_s\": %.3f, \"depth\": %d, "
+        "{\"scene\": %s, \"frames\": %d, \"rate_hz\": %.3f, \"start_s\": %.3f, \"depth\": %d, "
         "\"publish_depth\": %d, \"voxel_m\": %.3f, \"particles\": %d, \"threshold_m\": %.3f,\n"
         " \"mota\": %s, \"motp_m\": %s, \"id_switches\": %lld, \"misses\": %lld, "
         "\"false_positives\": %lld, \"ignored\": %lld, \"objects\": %lld, \"matches\": %lld,\n"
@@ -476,7 +477,7 @@ int RunTrackEval(const TrackEvalFlags& f) {
         " \"unknown_voxels_mean\": %.0f,\n"
         " \"tracker_build_ms\": %.1f, \"octree_ms\": {\"median\": %.3f, \"p99\": %.3f},\n"
         " \"people\": [",
-        s.name.c_str(), frames, s.rate_hz, f.start_s, f.depth, f.publish_depth,
+        common::JsonString(s.name).c_str(), frames, s.rate_hz, f.start_s, f.depth, f.publish_depth,
         tracker.voxel_map().grid().voxel_m(), f.particles, f.threshold_m,
         number(mota, "%.5f").c_str(), number(motp, "%.5f").c_str(),
         static_cast<long long>(tot.mismatches), static_cast<long long>(tot.misses),
@@ -491,10 +492,11 @@ int RunTrackEval(const TrackEvalFlags& f) {
     for (std::size_t i = 0; i < people.size(); ++i) {
       const PersonStats& p = people[i];
       std::printf(
-          "%s{\"name\": \"%s\", \"frames\": %lld, \"misses\": %lld, \"id_switches\": %lld, "
+          "%s{\"name\": %s, \"frames\": %lld, \"misses\": %lld, \"id_switches\": %lld, "
           "\"mean_distance_m\": %s}",
-          i == 0 ? "" : ", ", s.people[i].name.c_str(), static_cast<long long>(p.frames),
-          static_cast<long long>(p.misses), static_cast<long long>(p.switches),
+          i == 0 ? "" : ", ", common::JsonString(s.people[i].name).c_str(),
+          static_cast<long long>(p.frames), static_cast<long long>(p.misses),
+          static_cast<long long>(p.switches),
           number(p.matches > 0 ? p.distance_sum_m / static_cast<double>(p.matches) : NAN, "%.4f")
               .c_str());
     }
