@@ -16,6 +16,7 @@
 #include <system_error>
 #include <vector>
 
+#include "common/check.h"
 #include "common/config_error.h"
 #include "common/input_file.h"
 
@@ -101,6 +102,58 @@ bool ValidTextureAndNormal(std::string_view corner) {
 
 }  // namespace
 
+void TriangulatePolygon(const std::vector<int>& polygon, TriangleMesh* mesh) {
+  HG_CHECK(polygon.size() >= 3);
+  const std::vector<Eigen::Vector3d>& v = mesh->vertices;
+  if (polygon.size() == 3) {
+    mesh->triangles.push_back({polygon[0], polygon[1], polygon[2]});
+    return;
+  }
+  // The plane's normal (Newell), and the two axes it is seen along best.
+  Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < polygon.size(); ++i) {
+    const Eigen::Vector3d& a = v[polygon[i]];
+    const Eigen::Vector3d& b = v[polygon[(i + 1) % polygon.size()]];
+    normal += Eigen::Vector3d((a.y() - b.y()) * (a.z() + b.z()), (a.z() - b.z()) * (a.x() + b.x()),
+                              (a.x() - b.x()) * (a.y() + b.y()));
+  }
+  int drop = 0;
+  normal.cwiseAbs().maxCoeff(&drop);
+  const int ax = (drop + 1) % 3, ay = (drop + 2) % 3;
+  // Counter-clockwise in (ax, ay) when the normal points along +drop.
+  const double orientation = normal[drop] >= 0.0 ? 1.0 : -1.0;
+  auto cross = [&](int a, int b, int c) {  // Twice the signed area, winding-corrected.
+    const Eigen::Vector3d& p = v[a];
+    const Eigen::Vector3d& q = v[b];
+    const Eigen::Vector3d& r = v[c];
+    return orientation * ((q[ax] - p[ax]) * (r[ay] - p[ay]) - (q[ay] - p[ay]) * (r[ax] - p[ax]));
+  };
+  std::vector<int> left = polygon;
+  while (left.size() > 3) {
+    const std::size_t n = left.size();
+    bool clipped = false;
+    for (std::size_t i = 0; i < n && !clipped; ++i) {
+      const int a = left[(i + n - 1) % n], b = left[i], c = left[(i + 1) % n];
+      if (cross(a, b, c) <= 0.0) continue;  // A reflex (or flat) corner is no ear.
+      bool empty = true;
+      for (std::size_t j = 0; j < n && empty; ++j) {
+        const int p = left[j];
+        if (p == a || p == b || p == c) continue;
+        // Inside or on the triangle: it would cut through the polygon.
+        empty = !(cross(a, b, p) >= 0.0 && cross(b, c, p) >= 0.0 && cross(c, a, p) >= 0.0);
+      }
+      if (!empty) continue;
+      mesh->triangles.push_back({a, b, c});
+      left.erase(left.begin() + static_cast<std::ptrdiff_t>(i));
+      clipped = true;
+    }
+    if (!clipped) break;  // Degenerate or not simple: fanned below.
+  }
+  for (std::size_t i = 1; i + 1 < left.size(); ++i) {
+    mesh->triangles.push_back({left[0], left[i], left[i + 1]});
+  }
+}
+
 TriangleMesh LoadObj(const std::string& path) {
   std::ifstream in = common::OpenInputFile(path, "");
 
@@ -154,9 +207,7 @@ TriangleMesh LoadObj(const std::string& path) {
       if (polygon.size() < 3) {
         throw common::ConfigError::At(path, line_number, "f: needs at least 3 vertices");
       }
-      for (size_t i = 1; i + 1 < polygon.size(); ++i) {
-        mesh.triangles.push_back({polygon[0], polygon[i], polygon[i + 1]});
-      }
+      TriangulatePolygon(polygon, &mesh);
     }
   }
   if (in.bad()) throw common::ConfigError::At(path, line_number, "read error");
@@ -287,9 +338,7 @@ TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
             throw fail("endloop: a facet needs at least 3 vertices, got " +
                        std::to_string(loop.size()));
           }
-          for (std::size_t i = 1; i + 1 < loop.size(); ++i) {
-            mesh.triangles.push_back({loop[0], loop[i], loop[i + 1]});
-          }
+          TriangulatePolygon(loop, &mesh);
           state = State::kLoopDone;
         } else {
           throw unexpected("'vertex' or 'endloop'");

@@ -21,9 +21,17 @@ struct TriangleMesh {
   void Append(const TriangleMesh& other);
 };
 
-/// Loads a Wavefront OBJ file: `v` and `f` records (polygons are fanned into
-/// triangles; `f` indices may be negative or carry /vt/vn parts); other records
-/// are ignored.
+/// Appends to `mesh` triangles covering the planar polygon whose corners are
+/// mesh vertices `polygon` (in order, at least 3), with its winding: ear
+/// clipping in the polygon's plane, so that a concave face (an L-shaped
+/// cap) gets no triangle outside it, as a fan from its first corner would. A
+/// polygon that is degenerate or not simple, where no ear is left, is fanned
+/// from there on.
+void TriangulatePolygon(const std::vector<int>& polygon, TriangleMesh* mesh);
+
+/// Loads a Wavefront OBJ file: `v` and `f` records (polygons are cut into
+/// triangles by TriangulatePolygon(), concave ones too; `f` indices may be
+/// negative or carry /vt/vn parts); other records are ignored.
 /// @throws common::ConfigError naming the file and line on a missing file, a
 /// malformed number or an index out of range.
 [[nodiscard]] TriangleMesh LoadObj(const std::string& path);

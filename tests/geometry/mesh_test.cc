@@ -75,18 +75,47 @@ TEST(LoadObjTest, ParsesTrianglesAndIgnoresOtherRecords) {
   EXPECT_EQ(mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
 }
 
-TEST(LoadObjTest, FansQuadsAndPolygons) {
-  const ScopedFile obj = WriteFile("quad.obj",
+// Twice the signed area of triangle t seen from +z (its winding: > 0 counter-clockwise).
+double TwiceAreaZ(const TriangleMesh& mesh, const std::array<int, 3>& t) {
+  const Eigen::Vector3d a = mesh.vertices[t[0]], b = mesh.vertices[t[1]], c = mesh.vertices[t[2]];
+  return (b - a).cross(c - a).z();
+}
+
+// Polygons become triangles that cover exactly the polygon, with its winding:
+// a quad, a convex pentagon, and an L-shaped hexagon listed from a corner that
+// cannot see the whole of it (a fan from there crossed the notch).
+TEST(LoadObjTest, CutsQuadsAndPolygonsConcaveOnesToo) {
+  const ScopedFile obj = WriteFile("poly.obj",
                                    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0.5 1.5 0\n"
+                                   "v 2 0 1\nv 2 1 1\nv 1 1 1\nv 1 2 1\nv 0 2 1\nv 0 0 1\n"
                                    "f 1 2 3 4\n"
-                                   "f 1 2 3 5 4\n");
+                                   "f 1 2 3 5 4\n"
+                                   "f 6 7 8 9 10 11\n");
   const TriangleMesh mesh = LoadObj(obj.path);
-  ASSERT_EQ(mesh.triangles.size(), 5u);
-  EXPECT_EQ(mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
-  EXPECT_EQ(mesh.triangles[1], (std::array<int, 3>{0, 2, 3}));
-  EXPECT_EQ(mesh.triangles[2], (std::array<int, 3>{0, 1, 2}));
-  EXPECT_EQ(mesh.triangles[3], (std::array<int, 3>{0, 2, 4}));
-  EXPECT_EQ(mesh.triangles[4], (std::array<int, 3>{0, 4, 3}));
+  ASSERT_EQ(mesh.triangles.size(), 2u + 3u + 4u);
+  double areas[3] = {0, 0, 0};
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    const double twice = TwiceAreaZ(mesh, mesh.triangles[i]);
+    EXPECT_GT(twice, 0.0) << "triangle " << i << " turned over";
+    areas[i < 2 ? 0 : i < 5 ? 1 : 2] += 0.5 * twice;
+    // Every triangle lies inside its polygon: its centroid, for the L, off the notch.
+    const Eigen::Vector3d centroid =
+        (mesh.vertices[mesh.triangles[i][0]] + mesh.vertices[mesh.triangles[i][1]] +
+         mesh.vertices[mesh.triangles[i][2]]) /
+        3.0;
+    if (i >= 5) {
+      EXPECT_FALSE(centroid.x() > 1.0 && centroid.y() > 1.0) << "triangle " << i;
+    }
+  }
+  EXPECT_NEAR(areas[0], 1.0, 1e-12);
+  EXPECT_NEAR(areas[1], 1.25, 1e-12);
+  EXPECT_NEAR(areas[2], 3.0, 1e-12);  // A fan from (2, 0) covers 3.5, part of it twice.
+  // Each polygon's triangles use its own corners only.
+  for (std::size_t i = 0; i < mesh.triangles.size(); ++i) {
+    for (const int corner : mesh.triangles[i]) {
+      EXPECT_TRUE(i < 2 ? corner <= 3 : i < 5 ? corner <= 4 : corner >= 5) << i << " " << corner;
+    }
+  }
 }
 
 TEST(LoadObjTest, NegativeIndicesCountBackFromLastVertexSoFar) {
@@ -239,9 +268,9 @@ TEST(LoadStlTest, AsciiSolidsQuadsAndSharedCorners) {
   EXPECT_EQ(mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
   EXPECT_EQ(mesh.triangles[1], (std::array<int, 3>{1, 3, 2}));
   EXPECT_EQ(mesh.vertices[2], Eigen::Vector3d(0, 1, -0.25));
-  // The quad is fanned from its first corner.
-  EXPECT_EQ(mesh.triangles[2], (std::array<int, 3>{4, 5, 6}));
-  EXPECT_EQ(mesh.triangles[3], (std::array<int, 3>{4, 6, 7}));
+  // The quad is cut in two along a diagonal, with its winding.
+  EXPECT_EQ(mesh.triangles[2], (std::array<int, 3>{7, 4, 5}));
+  EXPECT_EQ(mesh.triangles[3], (std::array<int, 3>{5, 6, 7}));
   EXPECT_EQ(mesh.vertices[7], Eigen::Vector3d(5, 6, 5));
 }
 
