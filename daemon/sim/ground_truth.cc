@@ -278,28 +278,24 @@ void CheckFinite(double value, const std::string& path, const std::string& where
   }
 }
 
-void CheckWritable(const std::string& path, const GroundTruth& truth) {
-  CheckFinite(truth.rate_hz, path, "ground_truth.rate_hz");
-  for (std::size_t f = 0; f < truth.frames.size(); ++f) {
-    const FrameTruth& frame = truth.frames[f];
-    const std::string fw = "frames[" + std::to_string(f) + "]";
-    CheckFinite(frame.time_s, path, fw + ".time_s");
-    for (std::size_t p = 0; p < frame.people.size(); ++p) {
-      const BodyState& s = frame.people[p].state;
-      const std::string pw = fw + ".people[" + std::to_string(p) + "]";
-      CheckFinite(s.heading_rad, path, pw + ".heading_rad");
+void CheckWritable(const std::string& path, const FrameTruth& frame, std::size_t f) {
+  const std::string fw = "frames[" + std::to_string(f) + "]";
+  CheckFinite(frame.time_s, path, fw + ".time_s");
+  for (std::size_t p = 0; p < frame.people.size(); ++p) {
+    const BodyState& s = frame.people[p].state;
+    const std::string pw = fw + ".people[" + std::to_string(p) + "]";
+    CheckFinite(s.heading_rad, path, pw + ".heading_rad");
+    for (int i = 0; i < 3; ++i) {
+      CheckFinite(s.centre_W[i], path, pw + ".centre");
+      CheckFinite(s.ellipsoid_half_axes_m[i], path, pw + ".ellipsoid_half_axes");
+      CheckFinite(s.velocity_W[i], path, pw + ".velocity");
+    }
+    for (const BodyCapsule& c : s.parts) {
+      const std::string cw = pw + ".parts." + BodyPartName(c.part);
+      CheckFinite(c.radius_m, path, cw + ".radius");
       for (int i = 0; i < 3; ++i) {
-        CheckFinite(s.centre_W[i], path, pw + ".centre");
-        CheckFinite(s.ellipsoid_half_axes_m[i], path, pw + ".ellipsoid_half_axes");
-        CheckFinite(s.velocity_W[i], path, pw + ".velocity");
-      }
-      for (const BodyCapsule& c : s.parts) {
-        const std::string cw = pw + ".parts." + BodyPartName(c.part);
-        CheckFinite(c.radius_m, path, cw + ".radius");
-        for (int i = 0; i < 3; ++i) {
-          CheckFinite(c.a_W[i], path, cw + ".a");
-          CheckFinite(c.b_W[i], path, cw + ".b");
-        }
+        CheckFinite(c.a_W[i], path, cw + ".a");
+        CheckFinite(c.b_W[i], path, cw + ".b");
       }
     }
   }
@@ -310,53 +306,89 @@ YAML::Emitter& operator<<(YAML::Emitter& out, const Vector3d& v) {
   return out;
 }
 
-}  // namespace
-
-void WriteGroundTruth(const std::string& path, const GroundTruth& truth) {
-  CheckWritable(path, truth);
-  YAML::Emitter out;
-  // 17 significant digits make every double read back bit for bit.
-  out.SetDoublePrecision(std::numeric_limits<double>::max_digits10);
-  out << YAML::BeginMap;
-  out << YAML::Key << "ground_truth" << YAML::Value << YAML::Flow << YAML::BeginMap;
-  out << YAML::Key << "scene" << YAML::Value << truth.scene;
-  out << YAML::Key << "rate_hz" << YAML::Value << truth.rate_hz;
-  out << YAML::Key << "frames" << YAML::Value << truth.frames.size();
-  out << YAML::EndMap;
-  out << YAML::Key << "frames" << YAML::Value << YAML::BeginSeq;
-  for (const FrameTruth& frame : truth.frames) {
+/// One frame as an item of the `frames` list (a block sequence of one).
+void EmitFrame(YAML::Emitter& out, const FrameTruth& frame) {
+  out << YAML::BeginSeq << YAML::BeginMap;
+  out << YAML::Key << "frame" << YAML::Value << frame.frame;
+  out << YAML::Key << "time_s" << YAML::Value << frame.time_s;
+  out << YAML::Key << "people" << YAML::Value << YAML::BeginSeq;
+  for (const PersonTruth& person : frame.people) {
+    const BodyState& s = person.state;
     out << YAML::BeginMap;
-    out << YAML::Key << "frame" << YAML::Value << frame.frame;
-    out << YAML::Key << "time_s" << YAML::Value << frame.time_s;
-    out << YAML::Key << "people" << YAML::Value << YAML::BeginSeq;
-    for (const PersonTruth& person : frame.people) {
-      const BodyState& s = person.state;
-      out << YAML::BeginMap;
-      out << YAML::Key << "name" << YAML::Value << person.name;
-      out << YAML::Key << "action" << YAML::Value << ActionName(s.action);
-      out << YAML::Key << "heading_rad" << YAML::Value << s.heading_rad;
-      out << YAML::Key << "centre" << YAML::Value << s.centre_W;
-      out << YAML::Key << "ellipsoid_half_axes" << YAML::Value << s.ellipsoid_half_axes_m;
-      out << YAML::Key << "velocity" << YAML::Value << s.velocity_W;
-      out << YAML::Key << "parts" << YAML::Value << YAML::BeginMap;
-      for (int k = 0; k < kNumBodyParts; ++k) {
-        const BodyCapsule& c = s.parts[k];
-        out << YAML::Key << BodyPartName(static_cast<BodyPart>(k)) << YAML::Value;
-        out << YAML::Flow << YAML::BeginMap;
-        out << YAML::Key << "a" << YAML::Value << c.a_W;
-        out << YAML::Key << "b" << YAML::Value << c.b_W;
-        out << YAML::Key << "radius" << YAML::Value << c.radius_m;
-        out << YAML::EndMap;
-      }
-      out << YAML::EndMap;
+    out << YAML::Key << "name" << YAML::Value << person.name;
+    out << YAML::Key << "action" << YAML::Value << ActionName(s.action);
+    out << YAML::Key << "heading_rad" << YAML::Value << s.heading_rad;
+    out << YAML::Key << "centre" << YAML::Value << s.centre_W;
+    out << YAML::Key << "ellipsoid_half_axes" << YAML::Value << s.ellipsoid_half_axes_m;
+    out << YAML::Key << "velocity" << YAML::Value << s.velocity_W;
+    out << YAML::Key << "parts" << YAML::Value << YAML::BeginMap;
+    for (int k = 0; k < kNumBodyParts; ++k) {
+      const BodyCapsule& c = s.parts[k];
+      out << YAML::Key << BodyPartName(static_cast<BodyPart>(k)) << YAML::Value;
+      out << YAML::Flow << YAML::BeginMap;
+      out << YAML::Key << "a" << YAML::Value << c.a_W;
+      out << YAML::Key << "b" << YAML::Value << c.b_W;
+      out << YAML::Key << "radius" << YAML::Value << c.radius_m;
       out << YAML::EndMap;
     }
-    out << YAML::EndSeq;
+    out << YAML::EndMap;
     out << YAML::EndMap;
   }
   out << YAML::EndSeq;
-  out << YAML::EndMap;
-  common::WriteYamlFile(path, out);
+  out << YAML::EndMap << YAML::EndSeq;
+}
+
+}  // namespace
+
+void WriteGroundTruth(const std::string& path, const GroundTruth& truth) {
+  GroundTruthWriter writer(path, truth.scene, truth.rate_hz, truth.frames.size());
+  for (const FrameTruth& frame : truth.frames) writer.Add(frame);
+  writer.Finish();
+}
+
+GroundTruthWriter::GroundTruthWriter(const std::string& path, const std::string& scene,
+                                     double rate_hz, std::size_t frames)
+    : path_(path), frames_(frames) {
+  CheckFinite(rate_hz, path, "ground_truth.rate_hz");
+  YAML::Emitter head;
+  head.SetDoublePrecision(std::numeric_limits<double>::max_digits10);
+  head << YAML::BeginMap;
+  head << YAML::Key << "ground_truth" << YAML::Value << YAML::Flow << YAML::BeginMap;
+  head << YAML::Key << "scene" << YAML::Value << scene;
+  head << YAML::Key << "rate_hz" << YAML::Value << rate_hz;
+  head << YAML::Key << "frames" << YAML::Value << frames;
+  head << YAML::EndMap << YAML::EndMap;
+  if (!head.good()) throw ConfigError::At(path, 0, "cannot write: " + head.GetLastError());
+  file_.open(path, std::ios::out | std::ios::trunc);
+  // The list's items follow at the key's own indentation (valid YAML).
+  file_ << head.c_str() << "\nframes:" << (frames == 0 ? " []\n" : "\n");
+  if (!file_) throw ConfigError::At(path, 0, "cannot write");
+}
+
+void GroundTruthWriter::Add(const FrameTruth& frame) {
+  if (added_ >= frames_) {
+    throw ConfigError::At(path_, 0,
+                          "cannot write: more than the " + std::to_string(frames_) + " frames");
+  }
+  CheckWritable(path_, frame, added_);
+  YAML::Emitter out;
+  // 17 significant digits make every double read back bit for bit.
+  out.SetDoublePrecision(std::numeric_limits<double>::max_digits10);
+  EmitFrame(out, frame);
+  if (!out.good()) throw ConfigError::At(path_, 0, "cannot write: " + out.GetLastError());
+  file_ << out.c_str() << '\n';
+  if (!file_) throw ConfigError::At(path_, 0, "cannot write");
+  ++added_;
+}
+
+void GroundTruthWriter::Finish() {
+  if (added_ != frames_) {
+    throw ConfigError::At(
+        path_, 0,
+        "cannot write: " + std::to_string(added_) + " of " + std::to_string(frames_) + " frames");
+  }
+  file_.close();
+  if (!file_) throw ConfigError::At(path_, 0, "cannot write");
 }
 
 GroundTruth ReadGroundTruth(const std::string& path) {

@@ -4,6 +4,7 @@
 /// each person's centre and bounding ellipsoid) and its file format, documented
 /// in docs/synth.md. Written by `hullguard synth`, read by replay and evaluation.
 
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -32,6 +33,28 @@ struct GroundTruth {
 /// ReadGroundTruth returns exactly what was written.
 /// @throws common::ConfigError when the file cannot be written.
 void WriteGroundTruth(const std::string& path, const GroundTruth& truth);
+
+/// Writes the same file frame by frame, holding none of them: a long run's
+/// ground truth needs no memory of its own (hullguard synth).
+class GroundTruthWriter {
+ public:
+  /// Starts `path` for `frames` frames of scene `scene` at `rate_hz`.
+  /// @throws common::ConfigError when the file cannot be written.
+  GroundTruthWriter(const std::string& path, const std::string& scene, double rate_hz,
+                    std::size_t frames);
+  /// Appends the next frame. @throws common::ConfigError (a value that is not
+  /// finite, naming it; a write error; more frames than announced).
+  void Add(const FrameTruth& frame);
+  /// Ends the file. @throws common::ConfigError on a write error, or when
+  /// fewer frames were added than announced.
+  void Finish();
+
+ private:
+  std::string path_;
+  std::size_t frames_;
+  std::size_t added_ = 0;
+  std::ofstream file_;
+};
 
 /// Reads a file written by WriteGroundTruth.
 /// @throws common::ConfigError naming the file, line and key on malformed input.

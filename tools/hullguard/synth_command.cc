@@ -157,9 +157,9 @@ int RunSynth(const SynthFlags& f) {
 
   sim::Simulator simulator(std::move(scene), f.threads);
   const sim::Scene& s = simulator.scene();
-  sim::GroundTruth truth;
-  truth.scene = s.name;
-  truth.rate_hz = s.rate_hz;
+  // Frame by frame: a long run holds no ground truth in memory.
+  sim::GroundTruthWriter truth((out / "ground_truth.yaml").string(), s.name, s.rate_hz,
+                               static_cast<std::size_t>(f.frames));
   std::vector<common::ImageU8> mask_images;
   std::vector<common::ImageRgb8> colour_images;
   double render_ms = 0.0;
@@ -181,9 +181,9 @@ int RunSynth(const SynthFlags& f) {
                                   colour_images[c]);
       }
     }
-    truth.frames.push_back(simulator.Truth(frame, t));
+    truth.Add(simulator.Truth(frame, t));
   }
-  sim::WriteGroundTruth((out / "ground_truth.yaml").string(), truth);
+  truth.Finish();
   const double total_s =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t_begin).count();
   std::printf(
