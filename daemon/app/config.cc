@@ -1384,7 +1384,17 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache*
   for (const std::string& error : camera_errors) RecordCameraError(r, error, entry);
   const bool ok = model.has_value();
   if (model) camera.model = *model;
-  if (const auto it = e.find("name"); it != e.end()) *name_item = it->second;
+  if (const auto it = e.find("name"); it != e.end()) {
+    *name_item = it->second;
+    // The name becomes part of file names (kept backgrounds, recordings,
+    // black-box dumps).
+    if (ok) {
+      if (const std::string problem = geometry::FileNameProblem(camera.model.name);
+          !problem.empty()) {
+        r.Error(it->second.line, it->second.path, problem);
+      }
+    }
+  }
   r.Fields<CameraConfig>(kCameraFields, e, entry, &camera);
 
   const auto src = e.find("source");

@@ -254,21 +254,7 @@ class CameraParser {
       throw ConfigError::At(file_, LineOf(Key("name")),
                             Path("name") + ": expected a non-empty string");
     }
-    // Names become file and folder names (masks/<camera>/, kept
-    // backgrounds, recordings): nothing that could leave its folder or
-    // collide with another spelling of the same path.
     const std::string& name = v.Scalar();
-    const bool file_safe =
-        name.front() != '.' && std::all_of(name.begin(), name.end(), [](char ch) {
-          return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
-                 ch == '_' || ch == '-' || ch == '.';
-        });
-    if (!file_safe) {
-      throw ConfigError::At(file_, LineOf(Key("name")),
-                            Path("name") + ": '" + name +
-                                "' cannot name the camera's files and folders: letters, digits, "
-                                "'_', '-' and '.', not starting with '.'");
-    }
     return name;
   }
 
@@ -424,7 +410,20 @@ std::optional<CameraModel> ParseCameraReportingAll(const YAML::Node& node, const
   return std::nullopt;
 }
 
-std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::string& file) {
+std::string FileNameProblem(const std::string& name) {
+  const bool safe =
+      !name.empty() && name.front() != '.' && std::all_of(name.begin(), name.end(), [](char ch) {
+        return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') ||
+               ch == '_' || ch == '-' || ch == '.';
+      });
+  if (safe) return "";
+  return "'" + name +
+         "' cannot name the camera's files and folders: letters, digits, '_', '-' and '.', not "
+         "starting with '.'";
+}
+
+std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::string& file,
+                                         bool file_names) {
   if (!node.IsSequence() || node.size() == 0) {
     throw ConfigError::At(file, node.IsDefined() ? LineOf(node) : 0,
                           "cameras: expected a non-empty list of cameras");
@@ -437,6 +436,11 @@ std::vector<CameraModel> ParseCameraList(const YAML::Node& node, const std::stri
     CameraParser parser(entry, file, where);
     CameraModel camera = parser.Parse();
     const int line = parser.name_line();
+    if (file_names) {
+      if (const std::string problem = FileNameProblem(camera.name); !problem.empty()) {
+        throw ConfigError::At(file, line, where + ".name: " + problem);
+      }
+    }
     const auto [it, inserted] = first_line.emplace(camera.name, line);
     if (!inserted) {
       throw ConfigError::At(file, line,

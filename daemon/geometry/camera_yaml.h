@@ -36,10 +36,18 @@ namespace hg::geometry {
                                                                  const std::string& file,
                                                                  std::vector<std::string>* errors);
 
-/// Parses a `cameras:` sequence node (every entry, names unique).
+/// Why `name` cannot name a camera's files and folders (synth's
+/// masks/<camera>/, kept backgrounds, recordings): letters, digits, '_', '-'
+/// and '.', not starting with '.', so that nothing leaves its folder or
+/// spells a path two ways; "" when it can.
+[[nodiscard]] std::string FileNameProblem(const std::string& name);
+
+/// Parses a `cameras:` sequence node (every entry, names unique; with
+/// `file_names`, every name one that FileNameProblem() accepts).
 /// @throws common::ConfigError naming `file`, the line and the key.
 [[nodiscard]] std::vector<CameraModel> ParseCameraList(const YAML::Node& node,
-                                                       const std::string& file);
+                                                       const std::string& file,
+                                                       bool file_names = false);
 
 /// Loads a YAML file with a top-level `cameras:` list (and no other key).
 /// @throws common::ConfigError on a missing file, malformed YAML or a bad entry.

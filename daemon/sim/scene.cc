@@ -344,7 +344,9 @@ class SceneParser {
                       std::to_string(common::kMaxCameras) +
                       " (one octree fuses at most that many)");
       }
-      for (geometry::CameraModel& model : geometry::ParseCameraList(cameras->node(), file_)) {
+      // Names become synth's folders (masks/<camera>/).
+      for (geometry::CameraModel& model :
+           geometry::ParseCameraList(cameras->node(), file_, /*file_names=*/true)) {
         scene.cameras.push_back(SceneCamera{std::move(model), 0.0});
       }
     }

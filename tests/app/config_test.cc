@@ -440,6 +440,8 @@ const Mistake kMistakes[] = {
     {"topic_prefix: cell7", "topic_prefix: \"cell 7\"", 47, "dds.topic_prefix",
      "not a DDS topic name prefix"},
     {"topic_prefix: cell7", "topic_prefix: 7cell", 47, "dds.topic_prefix", "not starting"},
+    {"name: gige", "name: gige/left", 22, "cameras[2].name",
+     "'gige/left' cannot name the camera's files and folders"},
     {"K: [180.59645105620496, 0, 159.5, 0, 180.59645105620496, 89.5, 0, 0, 1]\n    R:",
      "K: [1e-9, 0, 159.5, 0, 1e-9, 89.5, 0, 0, 1]\n    R:", 17, "cameras[1].K",
      "focal lengths must be within [1, 1e6] px"},

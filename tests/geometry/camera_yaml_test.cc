@@ -111,7 +111,7 @@ TEST(CameraYamlTest, WriteThenLoadIsExact) {
   std::mt19937_64 rng(42);
   std::uniform_real_distribution<double> unit(-1.0, 1.0);
   std::vector<CameraModel> cams;
-  for (const char* name : {"left", "cam.2-b_x", "3", "yes"}) {
+  for (const char* name : {"left", "cam #2", "3", "yes"}) {
     CameraModel c;
     c.name = name;
     c.width = 1920;
@@ -334,17 +334,27 @@ TEST(CameraYamlErrorTest, UnknownDuplicateAndMissingKeys) {
               {"cameras[0]: missing key 'name'"});
 }
 
-// Names become file and folder names (synth's masks/<camera>/, kept
-// backgrounds, recordings): nothing that could leave the folder or spell a
-// path two ways.
+// Where names become file and folder names (a scene's cameras: synth's
+// masks/<camera>/; the daemon's: kept backgrounds, recordings), nothing that
+// could leave the folder or spell a path two ways; a cameras file for carve
+// takes any name.
 TEST(CameraYamlErrorTest, NamesThatCannotNameAFile) {
   for (const char* name : {"../x", "a/b", "/abs", ".hidden", "cam #2", "caf\xc3\xa9"}) {
     SCOPED_TRACE(name);
-    ExpectError(Replace(kCam0, "  - name: cam0\n", std::string("  - name: \"") + name + "\"\n"), 2,
-                {"cameras[0].name: '" + std::string(name) +
-                 "' cannot name the camera's files and folders: letters, digits, '_', '-' and '.', "
-                 "not starting with '.'"});
+    const std::string text =
+        Replace(kCam0, "  - name: cam0\n", std::string("  - name: \"") + name + "\"\n");
+    EXPECT_EQ(LoadCamerasFile(WriteTemp(text)).at(0).name, name);
+    try {
+      (void)ParseCameraList(YAML::Load(text)["cameras"], "f.yaml", /*file_names=*/true);
+      ADD_FAILURE() << "accepted";
+    } catch (const ConfigError& e) {
+      EXPECT_EQ(std::string(e.what()),
+                "f.yaml:2: cameras[0].name: '" + std::string(name) +
+                    "' cannot name the camera's files and folders: letters, digits, '_', '-' and "
+                    "'.', not starting with '.'");
+    }
   }
+  EXPECT_EQ(FileNameProblem("cam.2-b_X"), "");
 }
 
 TEST(CameraYamlErrorTest, KRtAndPTogether) {
