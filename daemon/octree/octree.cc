@@ -118,7 +118,9 @@ struct alignas(64) Octree::WorkerScratch {
   std::vector<CappedEntry> capped;
   std::vector<CappedEntry> capped_before;
   std::int64_t unsplit = 0;  // Nodes left pending for want of free blocks.
-  int root = 0;              // The root this worker is in.
+  // Per tree level: the camera that freed the last node freed there (a hint).
+  int last_free[Octree::kMaxDepth + 1] = {};
+  int root = 0;  // The root this worker is in.
 };
 
 /// One update pass: the per-worker traversal of roots.
@@ -140,7 +142,12 @@ class Octree::Updater {
         control_(control),
         boundary_depth_(tree.config_.depth - tree.config_.boundary_coarsening),
         split_limit_(split_limit),
-        spent_(spent) {}
+        spent_(spent) {
+    const int n = static_cast<int>(tree.cameras_.size());
+    for (int c = 0; c < n; ++c) order_[c] = c;
+    std::stable_sort(order_.begin(), order_.begin() + n,
+                     [&](int a, int b) { return tree.margin_[a] < tree.margin_[b]; });
+  }
 
   /// Per-worker counters, summed after the pass.
   using Counters = WorkerScratch;
@@ -599,7 +606,13 @@ class Octree::Updater {
       any_free = ((node.valid >> c) & 1u) != 0 && ((recompute >> c) & 1u) == 0 &&
                  GetVerdict(node.verdicts, c) == Verdict::kFree;
     }
-    for (int c = 0; c < num_cameras && !any_free; ++c) {
+    // The camera that freed the last node freed at this level first (a free
+    // verdict is the common end of a visit, and neighbours share it), then
+    // the others by margin, smallest first (a grown box is freed less often).
+    int& last_free = k.last_free[cell.level];
+    for (int o = -1; o < num_cameras && !any_free; ++o) {
+      const int c = o < 0 ? last_free : order_[o];
+      if (o >= 0 && c == last_free) continue;
       if (((recompute >> c) & 1u) == 0) continue;
       bool geometric = false;
       Verdict v = Classify(tree_.cameras_[c], masks_[c], fps[c], relation(c), &geometric);
@@ -618,6 +631,7 @@ class Octree::Updater {
                                                             : (node.geometric & ~(1u << c)));
       recompute &= ~(1u << c);
       any_free = v == Verdict::kFree;
+      if (any_free) last_free = c;
     }
     // Cameras left unevaluated (a free verdict came first) are stale now.
     node.valid &= static_cast<std::uint16_t>(~recompute);
@@ -798,6 +812,8 @@ class Octree::Updater {
   const int split_limit_;  // Nodes at this level or deeper are not split.
   std::atomic<bool> aborted_{false};
   std::atomic<std::int64_t>& spent_;  // Nodes recomputed, over the passes of an update.
+  // The cameras by margin, smallest first: the order verdicts are computed in.
+  std::array<int, kMaxCameras> order_{};
 };
 
 Octree::Octree(const OctreeConfig& config, std::vector<CameraView> cameras)

@@ -126,7 +126,7 @@ int RunBench(const BenchFlags& f) {
 #endif
   const bool has_baseline = static_cast<bool>(baseline_carve);
 
-  std::vector<double> render_ms, quadtree_ms, octree_ms, dense_ms, visited;
+  std::vector<double> render_ms, quadtree_ms, octree_ms, dense_ms, visited, verdicts;
   // With --leaf-changes: per incremental frame, the leaves the update wrote.
   std::vector<double> written;
   std::vector<std::uint64_t> leaf_keys;
@@ -163,6 +163,7 @@ int RunBench(const BenchFlags& f) {
     } else {
       octree_ms.push_back(times.octree.update_ms);
       visited.push_back(static_cast<double>(times.octree.nodes_visited));
+      verdicts.push_back(static_cast<double>(times.octree.verdicts_computed));
       for (int level = 0; level < octree::UpdateStats::kLevels; ++level) {
         if (times.octree.level_done_ms[level] >= 0.0) {
           level_done_ms[level].push_back(times.octree.level_done_ms[level]);
@@ -222,14 +223,15 @@ int RunBench(const BenchFlags& f) {
         "{\"scene\": %s, \"cameras\": %zu, \"width\": %d, \"height\": %d, \"frames\": %d, "
         "\"depth\": %d, \"threads\": %d, \"deadline_ms\": %.3f,\n \"stages\": {\"render\": %s, "
         "\"quadtree\": %s, \"octree\": %s},\n \"octree_first_frame_ms\": %.3f, \"nodes\": %lld, "
-        "\"leaves\": %lld, \"visited_per_frame_median\": %.0f, \"aborts\": %d, "
+        "\"leaves\": %lld, \"visited_per_frame_median\": %.0f, "
+        "\"verdicts_per_frame_median\": %.0f, \"aborts\": %d, "
         "\"unsplit_nodes\": %lld, \"truth_points\": %lld, \"truth_points_free\": %lld",
         common::JsonString(s.name).c_str(), s.cameras.size(), cam0.width, cam0.height, f.frames,
         f.depth, f.threads, f.deadline_ms, JsonSummary(render).c_str(), JsonSummary(quad).c_str(),
         JsonSummary(oct).c_str(), first_octree_ms, static_cast<long long>(tree.NumNodes()),
-        static_cast<long long>(tree.NumLeaves()), Summarise(visited).median, aborts,
-        static_cast<long long>(unsplit), static_cast<long long>(truth.points),
-        static_cast<long long>(truth.reported_free));
+        static_cast<long long>(tree.NumLeaves()), Summarise(visited).median,
+        Summarise(verdicts).median, aborts, static_cast<long long>(unsplit),
+        static_cast<long long>(truth.points), static_cast<long long>(truth.reported_free));
     if (!occupied_m3.empty()) {
       const FrameStats v = Summarise(occupied_m3);
       std::printf(", \"occupied_m3\": {\"median\": %.4f, \"p99\": %.4f, \"max\": %.4f}", v.median,
