@@ -144,9 +144,15 @@ class Octree::Updater {
         split_limit_(split_limit),
         spent_(spent) {
     const int n = static_cast<int>(tree.cameras_.size());
-    for (int c = 0; c < n; ++c) order_[c] = c;
-    std::stable_sort(order_.begin(), order_.begin() + n,
-                     [&](int a, int b) { return tree.margin_[a] < tree.margin_[b]; });
+    // Insertion sort, stable (std::stable_sort may allocate; this is per update).
+    for (int c = 0; c < n; ++c) {
+      int at = c;
+      while (at > 0 && tree.margin_[order_[at - 1]] > tree.margin_[c]) {
+        order_[at] = order_[at - 1];
+        --at;
+      }
+      order_[at] = c;
+    }
   }
 
   /// Per-worker counters, summed after the pass.

@@ -420,6 +420,12 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       c.fps = static_cast<double>(frames - 1) /
               (static_cast<double>(c.last_stamp_ns - c.first_stamp_ns) * 1e-9);
     }
+    // Nothing arrived within the last second: its rate over the last second is
+    // 0 now, not at the end of the window (a camera that stopped showed its
+    // old rate beside `stale` for up to a second).
+    if (c.seen && received_by && *received_by - c.last_ready > std::chrono::seconds(1)) {
+      c.fps = 0.0;
+    }
     CameraHealth& h = health.cameras[i];
     if (h.name != c.model.name) h.name = c.model.name;
     const bool source_failing = c.source != nullptr && c.source->failing();
