@@ -20,6 +20,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/config_error.h"
+#include "common/json.h"
 #include "placement/fov_volume.h"
 
 namespace hg::placement {
@@ -43,22 +44,7 @@ std::string Vec(const Eigen::Vector3d& v, int digits) {
 }
 
 /// JSON string literal (the texts here are names, paths and commands).
-std::string Quote(const std::string& text) {
-  std::string out = "\"";
-  for (const char ch : text) {
-    if (ch == '"' || ch == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (static_cast<unsigned char>(ch) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\u%04x", ch);
-      out += buf;
-    } else {
-      out += ch;
-    }
-  }
-  return out + "\"";
-}
+std::string Quote(const std::string& text) { return common::JsonString(text); }
 
 /// A finite number for JSON (null otherwise).
 std::string Number(double value, int digits = 6) {
