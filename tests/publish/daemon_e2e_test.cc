@@ -69,6 +69,7 @@ struct StatusSample {
   bool degraded = false;
   std::vector<std::uint8_t> camera_states;
   std::vector<float> frame_ages_ms;
+  std::vector<float> fps;
 };
 
 std::int64_t RealtimeNs() {
@@ -132,10 +133,11 @@ class Controller {
     for (int i = 0; i < n; ++i) {
       if (!infos[i].valid_data) continue;
       const auto& s = *static_cast<const hullguard_Status*>(samples[i]);
-      StatusSample st{s.sequence, Clock::now(), s.degraded, {}, {}};
+      StatusSample st{s.sequence, Clock::now(), s.degraded, {}, {}, {}};
       for (std::uint32_t c = 0; c < s.cameras._length; ++c) {
         st.camera_states.push_back(s.cameras._buffer[c].state);
         st.frame_ages_ms.push_back(s.cameras._buffer[c].frame_age_ms);
+        st.fps.push_back(s.cameras._buffer[c].fps);
       }
       status_samples.push_back(std::move(st));
     }
@@ -306,6 +308,19 @@ TEST_F(DaemonE2E, StoppedCameraTurnsDegradedAndOccupancyOnlyGrows) {
                            << " cycles with camera 3's frames past its timeout, called it ok";
   EXPECT_EQ(not_degraded, 0U) << "of " << past_timeout
                               << " cycles with camera 3's frames past its timeout, not degraded";
+  // Its rate over the last second: 0 once its newest frame is more than a
+  // second old (with a reporting cycle to spare), not the old rate until the
+  // next window.
+  std::size_t long_silent = 0, rate_shown = 0;
+  for (const StatusSample& st : controller.status_samples) {
+    if (st.frame_ages_ms[3] > 1100.0F) {
+      ++long_silent;
+      rate_shown += st.fps[3] > 0.0F ? 1 : 0;
+    }
+  }
+  EXPECT_GT(long_silent, 5U);
+  EXPECT_EQ(rate_shown, 0U) << "of " << long_silent
+                            << " cycles with camera 3 silent for over a second, showed a rate";
   // The daemon's log names the stale camera within the timeout (200 ms) plus
   // a reporting period.
   EXPECT_NE(daemon.Log().find("cam3 stale"), std::string::npos) << daemon.Log();
