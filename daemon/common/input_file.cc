@@ -42,6 +42,47 @@ std::string ReadInputFile(const std::string& path, const std::string& what,
   return text;
 }
 
+ImageHeaderFacts InspectImageHeader(std::string_view text) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  ImageHeaderFacts facts;
+  static constexpr unsigned char kPngSignature[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  if (n >= sizeof(kPngSignature) && std::memcmp(bytes, kPngSignature, 8) == 0) {
+    // Chunks before the image data (tRNS must precede IDAT).
+    std::size_t at = sizeof(kPngSignature);
+    while (n - at >= 12) {
+      const std::size_t length = (std::size_t{bytes[at]} << 24) |
+                                 (std::size_t{bytes[at + 1]} << 16) |
+                                 (std::size_t{bytes[at + 2]} << 8) | std::size_t{bytes[at + 3]};
+      if (std::memcmp(bytes + at + 4, "tRNS", 4) == 0) facts.png_colour_key = true;
+      if (std::memcmp(bytes + at + 4, "IDAT", 4) == 0 || length > n - at - 12) break;
+      at += 12 + length;
+    }
+    return facts;
+  }
+  if (n >= 2 && bytes[0] == 'P' && (bytes[1] == '5' || bytes[1] == '6')) {
+    std::size_t at = 2;
+    long long numbers[3] = {0, 0, 0};
+    for (long long& number : numbers) {
+      while (at < n && (std::isspace(bytes[at]) != 0 || bytes[at] == '#')) {
+        if (bytes[at] == '#') {
+          while (at < n && bytes[at] != '\n') ++at;
+        } else {
+          ++at;
+        }
+      }
+      const std::size_t start = at;
+      while (at < n && at - start < 9 && std::isdigit(bytes[at]) != 0) {
+        number = number * 10 + (bytes[at] - '0');
+        ++at;
+      }
+      if (at == start) return facts;
+    }
+    facts.pnm_maxval = static_cast<int>(numbers[2]);
+  }
+  return facts;
+}
+
 bool IsCompleteImage(std::string_view text) {
   const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
   static constexpr unsigned char kPngSignature[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};

@@ -27,4 +27,16 @@ namespace hg::common {
 /// missing rows with grey, and libpng and OpenCV print on stderr.
 [[nodiscard]] bool IsCompleteImage(std::string_view bytes);
 
+/// What an encoded image's own header says that a decoder may drop.
+struct ImageHeaderFacts {
+  /// A binary PGM/PPM (P5, P6): its maxval, whose samples OpenCV does not
+  /// scale to 8 bits (a 0/1 mask with maxval 1 decodes as 0/1, not 0/255);
+  /// 0 for other formats.
+  int pnm_maxval = 0;
+  /// A PNG with a tRNS chunk: transparency by a colour key, which OpenCV
+  /// drops from grey and RGB images.
+  bool png_colour_key = false;
+};
+[[nodiscard]] ImageHeaderFacts InspectImageHeader(std::string_view bytes);
+
 }  // namespace hg::common

@@ -264,6 +264,67 @@ TEST_F(CarveCliTest, ColourMasksCountTheirBrightestChannel) {
   EXPECT_EQ(alpha.out, "");
 }
 
+// PNG chunk CRC (ISO 3309), for a chunk written by hand below.
+std::uint32_t PngCrc(const std::string& type_and_data) {
+  std::uint32_t crc = 0xFFFFFFFFu;
+  for (const char ch : type_and_data) {
+    crc ^= static_cast<unsigned char>(ch);
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ ((crc & 1u) != 0 ? 0xEDB88320u : 0u);
+  }
+  return crc ^ 0xFFFFFFFFu;
+}
+
+std::string BigEndian(std::uint32_t v) {
+  return {static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
+          static_cast<char>(v)};
+}
+
+// What decoders drop from a mask's own header: a binary PGM's maxval (a 0/1
+// mask with maxval 1 read as raw 0/1 was all background, the person free) and
+// a PNG's transparency key (a keyed-out background dropped, the mask read as
+// drawn: refused like an alpha channel).
+TEST_F(CarveCliTest, PgmMaxvalIsScaledAndPngColourKeysAreRefused) {
+  std::ofstream(Path("down.yaml")) << "cameras:\n"
+                                   << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
+  std::ofstream(Path("q.txt")) << "1 1 1\n";
+  auto carve = [&](const std::string& mask) {
+    return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
+                     " --bounds 0 0 0 2 2 2 --depth 4 --query " + Path("q.txt"));
+  };
+  for (const int maxval : {1, 15, 255}) {
+    SCOPED_TRACE(maxval);
+    const std::string name = "max" + std::to_string(maxval) + ".pgm";
+    std::ofstream(Path(name), std::ios::binary) << "P5\n64 48\n"
+                                                << maxval << "\n"
+                                                << std::string(64 * 48, static_cast<char>(maxval));
+    const ProcessResult r = carve(name);
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.out, "1 1 1 occupied\n");
+  }
+  std::ofstream(Path("zero.pgm"), std::ios::binary) << "P5\n64 48\n1\n"
+                                                    << std::string(64 * 48, '\0');
+  EXPECT_EQ(carve("zero.pgm").out, "1 1 1 free\n");
+
+  // A grey PNG (all foreground) with a tRNS chunk keying grey level 0 out.
+  ASSERT_TRUE(cv::imwrite(Path("plain.png"), cv::Mat(48, 64, CV_8UC1, cv::Scalar(255))));
+  std::string png;
+  {
+    std::ifstream in(Path("plain.png"), std::ios::binary);
+    png.assign((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  }
+  const std::size_t idat = png.find("IDAT");
+  ASSERT_NE(idat, std::string::npos);
+  const std::string body = std::string("tRNS") + std::string("\0\0", 2);
+  png.insert(idat - 4, BigEndian(2) + body + BigEndian(PngCrc(body)));
+  std::ofstream(Path("keyed.png"), std::ios::binary) << png;
+  EXPECT_EQ(carve("plain.png").out, "1 1 1 occupied\n");
+  const ProcessResult keyed = carve("keyed.png");
+  EXPECT_EQ(keyed.code, 2) << keyed.out;
+  EXPECT_NE(keyed.err.find("keyed.png: mask has transparent pixels (a PNG transparency key"),
+            std::string::npos)
+      << keyed.err;
+}
+
 TEST_F(CarveCliTest, BytesAfterThePngEndAreIgnored) {
   // Some tools append bytes after a PNG's IEND chunk: the image is whole.
   {

@@ -102,6 +102,20 @@ common::ImageU8 ReadMask(const std::string& path) {
         path + ": not a readable 8-bit image (16-bit, truncated, damaged or not an image)");
   }
   const int channels = m.channels();
+  const common::ImageHeaderFacts facts = common::InspectImageHeader(bytes);
+  if (facts.png_colour_key && channels != 2 && channels != 4) {
+    // OpenCV drops a colour key from grey and RGB images: a foreground drawn
+    // on a keyed-out background would read inverted.
+    throw common::ConfigError(path +
+                              ": mask has transparent pixels (a PNG transparency key, tRNS); "
+                              "masks are read by their grey value, so save it without "
+                              "transparency");
+  }
+  if (facts.pnm_maxval > 0 && facts.pnm_maxval < 255) {
+    // Binary PGM/PPM samples are not scaled by OpenCV: a 0/1 mask (maxval 1)
+    // would read as all background. Scaled, maxval is white (255).
+    m.convertTo(m, -1, 255.0 / facts.pnm_maxval);
+  }
   if (channels == 2 || channels == 4) {
     // Transparency would be dropped: a mask drawn as opaque foreground on a
     // transparent background would read as all background, the person free.
