@@ -347,21 +347,34 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
     return false;
   }
   const cv::Mat encoded(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());
+  const common::ImageHeaderFacts facts = common::InspectImageHeader(
+      std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size()));
+  // A keyed-out background (PNG tRNS) is dropped by the decoder: the frame
+  // would read as drawn, not as meant. Unusable, as a damaged one.
+  if (facts.png_colour_key) return false;
   const bool sized = recording.width > 0;
   frame->device_stamp_ns = recording.frames[index].device_stamp_ns.value_or(-1);
   if (recording.kind != FrameKind::kRgb) {
     // ANYDEPTH: a 16-bit image stays 16-bit and is refused below, where a plain
     // GRAYSCALE decode would scale 255 down to 0 (foreground read as background).
-    const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+    cv::Mat img = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
     if (img.empty() || img.type() != CV_8UC1 || !img.isContinuous()) return false;
+    // Binary PGM samples are not scaled to 8 bits: a 0/1 mask (maxval 1)
+    // would read as all background.
+    if (facts.pnm_maxval > 0 && facts.pnm_maxval < 255) {
+      img.convertTo(img, -1, 255.0 / facts.pnm_maxval);
+    }
     if (sized && (img.cols != recording.width || img.rows != recording.height)) return false;
     frame->kind = recording.kind;
     frame->grey.width = img.cols;
     frame->grey.height = img.rows;
     frame->grey.pixels.assign(img.data, img.data + img.total());
   } else {
-    const cv::Mat img = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
+    cv::Mat img = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
     if (img.empty() || img.type() != CV_8UC3) return false;
+    if (facts.pnm_maxval > 0 && facts.pnm_maxval < 255) {
+      img.convertTo(img, -1, 255.0 / facts.pnm_maxval);
+    }
     if (sized && (img.cols != recording.width || img.rows != recording.height)) return false;
     frame->kind = FrameKind::kRgb;
     frame->rgb.width = img.cols;

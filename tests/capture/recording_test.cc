@@ -421,6 +421,24 @@ TEST_F(RecordingTest, SixteenBitAndFolderFramesAreUnreadable) {
   EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
 }
 
+// A binary PGM mask with a maxval below 255 is scaled (a 0/1 mask, maxval 1,
+// decodes as raw 0/1: all background, every person free), as in hullguard carve.
+TEST_F(RecordingTest, PgmMasksWithASmallMaxvalAreScaled) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 1, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a}\n";
+  std::ofstream(dir_ / "masks" / "a" / "000000.png", std::ios::binary)
+      << "P5\n6 4\n1\n"
+      << std::string(12, '\1') << std::string(12, '\0');
+  ReplaySource source(ReadRecordingCamera(dir_.string(), "a"), SimClock{});
+  Frame f;
+  ASSERT_TRUE(source.ReadFrame(0, &f));
+  std::vector<std::uint8_t> expected(6 * 4, 0);
+  std::fill(expected.begin(), expected.begin() + 12, 255);
+  EXPECT_EQ(f.grey.pixels, expected);
+}
+
 // A frame file cut short (a disk full while recording, a copy interrupted) is
 // unreadable, whatever its format, and is refused before a decoder sees it:
 // libjpeg would fill the missing rows with grey and call it a frame, and libpng
