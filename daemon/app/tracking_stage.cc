@@ -15,9 +15,11 @@ void AtomicMax(std::atomic<double>* target, double value) {
 }
 
 /// A complete (or refined enough) update with every camera delivering (or
-/// lost after it did).
-bool Trackable(const pipeline::OccupancySnapshot& s, double voxel_m) {
+/// lost after it did); with `starting_ok`, also with cameras that have not
+/// delivered yet (they see nothing, as lost ones).
+bool Trackable(const pipeline::OccupancySnapshot& s, double voxel_m, bool starting_ok) {
   if (!pipeline::RefinedForTracking(s, voxel_m)) return false;
+  if (starting_ok) return true;
   for (const pipeline::CameraHealth& c : s.health.cameras) {
     if (c.state == pipeline::CameraState::kStarting) return false;
   }
@@ -78,7 +80,12 @@ void TrackingStage::Offer(const std::shared_ptr<const pipeline::OccupancySnapsho
 }
 
 bool TrackingStage::RunOnce(const pipeline::OccupancySnapshot& snapshot) {
-  if (!Trackable(snapshot, tracker_.options().voxel_m)) {
+  if (first_stamp_ns_ == 0) first_stamp_ns_ = snapshot.stamp_ns;
+  // A camera that has not delivered within kStartingWait of the first cycle
+  // (the daemon's READY=1 wait) is taken as lost rather than holding
+  // tracking back for ever.
+  const bool starting_ok = snapshot.stamp_ns - first_stamp_ns_ >= kStartingWaitNs;
+  if (!Trackable(snapshot, tracker_.options().voxel_m, starting_ok)) {
     untracked_.fetch_add(1, std::memory_order_relaxed);
     return false;
   }

@@ -115,6 +115,9 @@ class TrackingStage {
   SnapshotStage stage_;  // The thread, the handoff and the heartbeat ("tracking").
   std::atomic<std::uint64_t> cycles_{0};
   std::atomic<std::uint64_t> untracked_{0};
+  /// Tracking waits this long (snapshot time) for every camera's first frame.
+  static constexpr std::int64_t kStartingWaitNs = 15'000'000'000;
+  std::int64_t first_stamp_ns_ = 0;  // Of the first snapshot offered (tracking thread).
   std::atomic<int> tracks_{0};
   std::atomic<double> last_ms_{0.0};
   std::atomic<double> max_ms_{0.0};

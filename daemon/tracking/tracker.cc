@@ -600,8 +600,12 @@ void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vecto
   for (Slot& s : slots_) {
     if (!s.alive || s.time_since_support_s <= 0.0) continue;
     const double d = (s.filter->estimate().ellipsoid.centre_W - mean).norm();
+    // The reach grows with the time without support up to the (visible)
+    // death timeout, no further: a track hidden for long (an occluded pocket)
+    // is not handed to someone who appears metres away, across walls.
     const double reach =
-        options_.reacquire_radius_m + options_.reacquire_speed_mps * s.time_since_support_s;
+        options_.reacquire_radius_m +
+        options_.reacquire_speed_mps * std::min(s.time_since_support_s, options_.death_timeout_s);
     if (d <= reach && d < lost_distance) {
       lost = &s;
       lost_distance = d;

@@ -108,9 +108,9 @@ struct TrackerOptions {
   int birth_view_margin_voxels = 2;
   /// A component that would start a track is instead given to the nearest
   /// track without support whose centre lies within reacquire_radius_m +
-  /// reacquire_speed_mps * (its time without support): the person who
-  /// disappeared (under a table, behind a rack) is taken to have come back,
-  /// and keeps the id.
+  /// reacquire_speed_mps * (its time without support, at most
+  /// death_timeout_s): the person who disappeared (under a table, behind a
+  /// rack) is taken to have come back, and keeps the id.
   double reacquire_radius_m = 0.5;
   double reacquire_speed_mps = 1.5;
   /// A track is supported in a cycle when its estimate ellipsoid holds at least

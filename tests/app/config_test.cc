@@ -1080,8 +1080,10 @@ TEST(ConfigTrackingTest, EachMistakeNamesFileLineAndKey) {
   ASSERT_EQ(ErrorOf(kTracking), "");
   const Mistake mistakes[] = {
       {"enabled: false", "enabled: sometimes", 12, "tracking.enabled", "true or false"},
-      {"voxel_m: 0.05", "voxel_m: 0", 13, "tracking.voxel_m", "must be in 0.01 .. 1"},
-      {"particles: 120", "particles: 0", 14, "tracking.particles", "must be in 1 .. 100000"},
+      {"voxel_m: 0.05", "voxel_m: 0", 13, "tracking.voxel_m", "must be in 0.01 .. 0.25"},
+      {"voxel_m: 0.05", "voxel_m: 0.5", 13, "tracking.voxel_m", "must be in 0.01 .. 0.25"},
+      {"particles: 120", "particles: 0", 14, "tracking.particles", "must be in 10 .. 100000"},
+      {"particles: 120", "particles: 5", 14, "tracking.particles", "must be in 10 .. 100000"},
       {"particles: 120", "particles: many", 14, "tracking.particles", "expected an integer"},
       {"max_tracks: 4", "max_tracks: 2000", 15, "tracking.max_tracks", "must be in 1 .. 1024"},
       {"rho_unknown: 2", "rho_unknown: 0", 16, "tracking.rho_unknown", "must be > 0"},
@@ -1126,8 +1128,8 @@ TEST(ConfigTrackingTest, ReferenceDocListsTheSection) {
   const std::string md = ConfigReferenceMarkdown();
   EXPECT_NE(md.find("| `tracking` | map |"), std::string::npos);
   EXPECT_NE(md.find("| `tracking.enabled` | bool | true | - |"), std::string::npos);
-  EXPECT_NE(md.find("| `tracking.voxel_m` | number | 0.05 | 0.01 .. 1 |"), std::string::npos);
-  EXPECT_NE(md.find("| `tracking.particles` | integer | 300 | 1 .. 100000 |"), std::string::npos);
+  EXPECT_NE(md.find("| `tracking.voxel_m` | number | 0.05 | 0.01 .. 0.25 |"), std::string::npos);
+  EXPECT_NE(md.find("| `tracking.particles` | integer | 300 | 10 .. 100000 |"), std::string::npos);
   for (const char* key :
        {"`tracking.rho_unknown`", "`tracking.sigma_occluded`", "`tracking.tau_known`",
         "`tracking.epsilon_free`", "`tracking.collision_radius_m`", "`tracking.death_timeout_s`"}) {

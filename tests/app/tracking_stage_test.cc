@@ -126,7 +126,8 @@ TEST(TrackingStageTest, CyclesReachTheConsumerAndAllocateNothingAfterWarmUp) {
 // space as occupied that no camera looked at: no evidence of a person, so the
 // stage leaves it out (no cycle, no consumer call), unless coarse first refined
 // the aborted update everywhere to cells of at most two tracking voxels. A
-// camera lost later does not stop tracking.
+// camera lost later does not stop tracking, nor, after 15 s, one that never
+// delivered.
 TEST(TrackingStageTest, UnrefinedAbortedAndStartingSnapshotsAreNotTracked) {
   int calls = 0;
   bool degraded = false;
@@ -161,6 +162,16 @@ TEST(TrackingStageTest, UnrefinedAbortedAndStartingSnapshotsAreNotTracked) {
   const TrackingStats stats = stage.stats();
   EXPECT_EQ(stats.cycles, 2u);
   EXPECT_EQ(stats.untracked, 3u);
+  // A camera that never delivers holds tracking back only for 15 s of
+  // snapshot time from the first cycle; then it counts as lost.
+  const std::int64_t first = snap.stamp_ns;
+  snap.complete = true;
+  snap.health.cameras[1].state = pipeline::CameraState::kStarting;
+  snap.stamp_ns = first + 14'900'000'000LL;
+  EXPECT_FALSE(stage.RunOnce(snap));
+  snap.stamp_ns = first + 15'000'000'000LL;
+  EXPECT_TRUE(stage.RunOnce(snap));
+  EXPECT_EQ(calls, 3);
 }
 
 // The thread: snapshots offered before it takes them are skipped, never

@@ -330,6 +330,50 @@ TEST(TrackerTest, CrawlUnderATableKeepsTheTrack) {
   EXPECT_FALSE(tracker.tracks()[0].occluded);
 }
 
+// A person hides in a pocket no camera sees into; long after, someone else
+// appears 3 m away. The hidden track's re-acquisition reach grows with its
+// time without support only up to the death timeout (2 m by default): the
+// newcomer gets an id of their own, and the hidden person keeps theirs
+// (before, the reach grew without bound and the track jumped to the newcomer).
+TEST(TrackerTest, AHiddenTrackIsNotHandedToSomeoneFarAway) {
+  const VoxelGrid g = CellGrid();
+  auto in_pocket = [](const Vector3d& p) { return p.x() < 1.0 && p.y() < 1.0; };
+  std::vector<VoxelState> states(g.size(), VoxelState::kFree);
+  for (int z = 0; z < g.nz(); ++z) {
+    for (int y = 0; y < g.ny(); ++y) {
+      for (int x = 0; x < g.nx(); ++x) {
+        if (in_pocket(g.Centre(x, y, z))) states[g.Index(x, y, z)] = VoxelState::kOccluded;
+      }
+    }
+  }
+  Tracker tracker(TrackerOptions{}, VoxelMap(g, states), CollisionWorld());
+  int frame = 0;
+  // Walks in from the open cell and stays in the pocket, hidden.
+  for (; frame < 180; ++frame) {
+    const double x = std::max(2.4 - 1.0 * frame * kDt, 0.5);
+    SetBlobs(&tracker, {Person(Vector3d(x, 0.5, 0.9))}, in_pocket);
+    tracker.Step(StampNs(frame));
+  }
+  ASSERT_EQ(tracker.tracks().size(), 1u);
+  const std::uint32_t hidden_id = tracker.tracks()[0].id;
+  EXPECT_TRUE(tracker.tracks()[0].occluded);
+  EXPECT_GT(tracker.tracks()[0].time_since_support_s, 3.0);
+  // Someone else appears 3 m away and stands.
+  const Vector3d newcomer(3.2, 2.6, 0.9);
+  for (int k = 0; k < 30; ++k, ++frame) {
+    SetBlobs(&tracker, {Person(Vector3d(0.5, 0.5, 0.9)), Person(newcomer)}, in_pocket);
+    tracker.Step(StampNs(frame));
+  }
+  EXPECT_EQ(tracker.stats().reacquisitions, 0u);
+  EXPECT_EQ(tracker.stats().births, 2u);
+  ASSERT_EQ(tracker.tracks().size(), 2u);
+  const Track* near_newcomer = Nearest(tracker.tracks(), newcomer);
+  EXPECT_NE(near_newcomer->id, hidden_id);
+  EXPECT_LT((near_newcomer->centre_W - newcomer).norm(), 0.2);
+  const Track* near_pocket = Nearest(tracker.tracks(), Vector3d(0.5, 0.5, 0.9));
+  EXPECT_EQ(near_pocket->id, hidden_id);
+}
+
 // A person standing on a table is tracked at the height of one standing on
 // the floor: the table top under the ellipsoid is its floor (scored like the
 // space below the cell's floor), not an obstacle that pushes the ellipsoid up.
