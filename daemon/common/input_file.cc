@@ -42,6 +42,35 @@ std::string ReadInputFile(const std::string& path, const std::string& what,
   return text;
 }
 
+namespace {
+
+/// A binary PGM/PPM header (P5, P6): width, height and maxval into
+/// `numbers`, each after whitespace or comments; *at ends just past maxval.
+/// False when a number is missing or is not followed by whitespace.
+bool ReadPnmHeader(const unsigned char* bytes, std::size_t n, std::size_t* at,
+                   long long (&numbers)[3]) {
+  *at = 2;
+  for (long long& number : numbers) {
+    number = 0;
+    while (*at < n && (std::isspace(bytes[*at]) != 0 || bytes[*at] == '#')) {
+      if (bytes[*at] == '#') {
+        while (*at < n && bytes[*at] != '\n') ++*at;
+      } else {
+        ++*at;
+      }
+    }
+    const std::size_t start = *at;
+    while (*at < n && *at - start < 9 && std::isdigit(bytes[*at]) != 0) {
+      number = number * 10 + (bytes[*at] - '0');
+      ++*at;
+    }
+    if (*at == start || *at >= n || std::isspace(bytes[*at]) == 0) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 ImageHeaderFacts InspectImageHeader(std::string_view text) {
   const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
   const std::size_t n = text.size();
@@ -61,24 +90,9 @@ ImageHeaderFacts InspectImageHeader(std::string_view text) {
     return facts;
   }
   if (n >= 2 && bytes[0] == 'P' && (bytes[1] == '5' || bytes[1] == '6')) {
-    std::size_t at = 2;
-    long long numbers[3] = {0, 0, 0};
-    for (long long& number : numbers) {
-      while (at < n && (std::isspace(bytes[at]) != 0 || bytes[at] == '#')) {
-        if (bytes[at] == '#') {
-          while (at < n && bytes[at] != '\n') ++at;
-        } else {
-          ++at;
-        }
-      }
-      const std::size_t start = at;
-      while (at < n && at - start < 9 && std::isdigit(bytes[at]) != 0) {
-        number = number * 10 + (bytes[at] - '0');
-        ++at;
-      }
-      if (at == start) return facts;
-    }
-    facts.pnm_maxval = static_cast<int>(numbers[2]);
+    std::size_t at = 0;
+    long long numbers[3];
+    if (ReadPnmHeader(bytes, n, &at, numbers)) facts.pnm_maxval = static_cast<int>(numbers[2]);
   }
   return facts;
 }
@@ -109,25 +123,11 @@ bool IsCompleteImage(std::string_view text) {
     return end >= 4 && bytes[end - 2] == 0xFF && bytes[end - 1] == 0xD9;
   }
   if (n >= 2 && bytes[0] == 'P' && (bytes[1] == '5' || bytes[1] == '6')) {
-    // Header: magic, width, height, maxval, each after whitespace or
-    // comments, then one whitespace byte before the pixels.
-    std::size_t at = 2;
-    long long numbers[3] = {0, 0, 0};
-    for (long long& number : numbers) {
-      while (at < n && (std::isspace(bytes[at]) != 0 || bytes[at] == '#')) {
-        if (bytes[at] == '#') {
-          while (at < n && bytes[at] != '\n') ++at;
-        } else {
-          ++at;
-        }
-      }
-      const std::size_t start = at;
-      while (at < n && at - start < 9 && std::isdigit(bytes[at]) != 0) {
-        number = number * 10 + (bytes[at] - '0');
-        ++at;
-      }
-      if (at == start || at >= n || std::isspace(bytes[at]) == 0) return false;
-    }
+    // Header: magic, width, height, maxval, then one whitespace byte before
+    // the pixels.
+    std::size_t at = 0;
+    long long numbers[3];
+    if (!ReadPnmHeader(bytes, n, &at, numbers)) return false;
     ++at;  // The single whitespace byte.
     const long long channels = bytes[1] == '6' ? 3 : 1;
     const long long sample_bytes = numbers[2] > 255 ? 2 : 1;
