@@ -592,7 +592,10 @@ class SceneParser {
       }
       // A crawl at walking pace would be unphysical; the default is a slow crawl.
       action.speed_mps = action.kind == ActionKind::kWalk ? 1.2 : 0.4;
-      if (const std::optional<Value> speed = m.Find("speed")) action.speed_mps = speed->Positive();
+      // 1 cm/s at the least: a speed near zero made an action last for ever.
+      if (const std::optional<Value> speed = m.Find("speed")) {
+        action.speed_mps = speed->InRange(0.01, 10.0);
+      }
       action.duration_s = length_m / action.speed_mps;
       *position_W = previous;
     } else if (kind == "stand" || kind == "crouch") {

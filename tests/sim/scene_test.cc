@@ -514,9 +514,12 @@ TEST(SceneErrorTest, NonFiniteNumbers) {
 TEST(SceneErrorTest, ValueRanges) {
   // The example of the format documentation.
   ExpectError(Replace(kBase, "speed: 1.2", "speed: 0"), 29,
-              "people[1].script[2].walk.speed: must be > 0");
+              "people[1].script[2].walk.speed: must be in [0.01, 10]");
   ExpectError(Replace(kBase, "speed: 1.0}", "speed: -1.0}"), 19,
-              "people[0].script[0].walk.speed: must be > 0");
+              "people[0].script[0].walk.speed: must be in [0.01, 10]");
+  // Near zero, the walk would last for ever.
+  ExpectError(Replace(kBase, "speed: 1.0}", "speed: 1e-320}"), 19,
+              "people[0].script[0].walk.speed: must be in [0.01, 10]");
   ExpectError(Replace(kBase, "    height: 1.8\n", "    height: 1.8\n    shirt: [0.5, 1.2, 0]\n"),
               24, "people[1].shirt[1]: must be in [0, 1]");
   ExpectError(Replace(kBase, "height: 1.8", "height: 2.5"), 23,
