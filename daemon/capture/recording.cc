@@ -352,6 +352,20 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   // A keyed-out background (PNG tRNS) is dropped by the decoder: the frame
   // would read as drawn, not as meant. Unusable, as a damaged one.
   if (facts.png_colour_key) return false;
+  if (facts.png_alpha) {
+    // The same for transparent pixels of an alpha channel (opaque ones are
+    // harmless): the decodes below drop it.
+    const cv::Mat with_alpha = cv::imdecode(encoded, cv::IMREAD_UNCHANGED);
+    if (with_alpha.empty() || with_alpha.depth() != CV_8U) return false;
+    const int channels = with_alpha.channels();
+    if (channels == 2 || channels == 4) {
+      cv::Mat alpha;
+      cv::extractChannel(with_alpha, alpha, channels - 1);
+      double lowest = 0.0;
+      cv::minMaxLoc(alpha, &lowest);
+      if (lowest < 255.0) return false;
+    }
+  }
   const bool sized = recording.width > 0;
   frame->device_stamp_ns = recording.frames[index].device_stamp_ns.value_or(-1);
   if (recording.kind != FrameKind::kRgb) {

@@ -77,6 +77,11 @@ ImageHeaderFacts InspectImageHeader(std::string_view text) {
   ImageHeaderFacts facts;
   static constexpr unsigned char kPngSignature[] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   if (n >= sizeof(kPngSignature) && std::memcmp(bytes, kPngSignature, 8) == 0) {
+    // IHDR comes first: its colour type (byte 9 of its data) 4 is grey +
+    // alpha, 6 RGBA.
+    if (n >= 26 && std::memcmp(bytes + 12, "IHDR", 4) == 0) {
+      facts.png_alpha = bytes[25] == 4 || bytes[25] == 6;
+    }
     // Chunks before the image data (tRNS must precede IDAT).
     std::size_t at = sizeof(kPngSignature);
     while (n - at >= 12) {

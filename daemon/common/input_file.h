@@ -36,6 +36,9 @@ struct ImageHeaderFacts {
   /// A PNG with a tRNS chunk: transparency by a colour key, which OpenCV
   /// drops from grey and RGB images.
   bool png_colour_key = false;
+  /// A PNG with an alpha channel (grey + alpha or RGBA), which a grey or
+  /// colour decode drops.
+  bool png_alpha = false;
 };
 [[nodiscard]] ImageHeaderFacts InspectImageHeader(std::string_view bytes);
 

@@ -439,6 +439,26 @@ TEST_F(RecordingTest, PgmMasksWithASmallMaxvalAreScaled) {
   EXPECT_EQ(f.grey.pixels, expected);
 }
 
+// A mask frame with transparent pixels (an alpha channel, which the grey
+// decode drops: a keyed-out background would read as drawn) is unreadable;
+// an opaque alpha channel changes nothing.
+TEST_F(RecordingTest, MaskFramesWithTransparentPixelsAreUnreadable) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 2, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a}\n";
+  cv::Mat rgba(4, 6, CV_8UC4, cv::Scalar(0, 0, 0, 0));
+  rgba(cv::Rect(1, 1, 3, 2)).setTo(cv::Scalar(255, 255, 255, 255));
+  ASSERT_TRUE(cv::imwrite((dir_ / "masks" / "a" / "000000.png").string(), rgba));
+  ASSERT_TRUE(cv::imwrite((dir_ / "masks" / "a" / "000001.png").string(),
+                          cv::Mat(4, 6, CV_8UC4, cv::Scalar(255, 255, 255, 255))));
+  ReplaySource source(ReadRecordingCamera(dir_.string(), "a"), SimClock{});
+  Frame f;
+  EXPECT_FALSE(source.ReadFrame(0, &f));
+  ASSERT_TRUE(source.ReadFrame(1, &f));
+  EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
+}
+
 // A frame file cut short (a disk full while recording, a copy interrupted) is
 // unreadable, whatever its format, and is refused before a decoder sees it:
 // libjpeg would fill the missing rows with grey and call it a frame, and libpng
