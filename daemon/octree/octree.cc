@@ -504,18 +504,16 @@ class Octree::Updater {
     };
     ++k.visited;
     Node node = N(index);  // Copy: worked on here, written back below.
+    // Never a node a pass stopped at (kCoarse, kCapped): the next pass goes
+    // on from its list with the node's children (RefineRoot), and
+    // FinishCoarse() makes what is left pending.
     const bool pending = (node.flags & kPending) != 0;
-    // Refinement of a node the coarse pass stopped at: its own verdicts are
-    // current, its subtree still needs the changes since its stamp.
-    const bool coarse_here = (node.flags & kCoarse) != 0;
-    if (coarse_here) unchanged = 0;
     // A pending node's cache and subtree are exact as of its stamp only. Its
     // subtree takes every change from then on, even when the stamp is this
-    // pass's own: a coarse pass that found no room to list it left it pending
-    // at its `since`, and the refinement pass starts with every change
-    // counted as applied.
+    // pass's own (a pass that found no room to list it left it pending at its
+    // `since`).
     if (pending) unchanged = 0;
-    if ((pending || coarse_here) && node.stamp < since) {
+    if (pending && node.stamp < since) {
       since = node.stamp;
       unchanged = 0;
     }
@@ -536,8 +534,7 @@ class Octree::Updater {
 
     // Fast path: a free leaf stays free while one camera that certified it sees
     // no change in its footprint.
-    if (!recompute_all && !coarse_here && node.state == kFreeLeaf &&
-        (node.flags & kHasPending) == 0) {
+    if (!recompute_all && node.state == kFreeLeaf && (node.flags & kHasPending) == 0) {
       for (int c = 0; c < num_cameras; ++c) {
         if (((node.valid >> c) & 1u) == 0 || GetVerdict(node.verdicts, c) != Verdict::kFree) {
           continue;
@@ -568,10 +565,8 @@ class Octree::Updater {
         continue;
       }
       bool settled = false;
-      // A kCoarse node's verdicts are current (the pass that stopped at it
-      // computed them); only its children need to know what changed.
       const bool changed = ChangedIn(c, fps[c], unchanged, since, forced, &settled);
-      if (changed && !coarse_here) recompute |= 1u << c;
+      if (changed) recompute |= 1u << c;
       if (settled) {
         child_unchanged |= 1u << c;
       } else if (!changed) {
@@ -579,14 +574,14 @@ class Octree::Updater {
       }
     }
     const bool has_children = node.state == kInner || node.state == kPackedInner;
-    if (!recompute_all && !coarse_here && recompute == 0 && !inherited_news &&
-        (unsettled == 0 || !has_children) && (node.flags & kHasPending) == 0) {
+    if (!recompute_all && recompute == 0 && !inherited_news && (unsettled == 0 || !has_children) &&
+        (node.flags & kHasPending) == 0) {
       if (pending) N(index).flags &= kHoldsOccupied | kWitnessBits;
       return ReadsOccupied(N(index));  // Subtree still exact.
     }
     if (CheckAbort(k)) {
       // Stale from here down.
-      if ((node.flags & kCapped) == 0) ++k.pending;  // Capped ones are counted at the end.
+      ++k.pending;
       Node& n = N(index);
       n.flags |= kPending;
       n.stamp = recompute_all ? 0 : since;
