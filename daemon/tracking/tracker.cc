@@ -217,6 +217,12 @@ void Tracker::Init() {
   queue_.reserve(map_.grid().size());
   path_.reserve(map_.grid().nz());
   layer_evidence_.assign(map_.grid().nz(), 0);
+  const std::size_t floor_columns =
+      static_cast<std::size_t>(map_.grid().nx()) * static_cast<std::size_t>(map_.grid().ny());
+  column_labels_.assign(floor_columns, 0);
+  columns_.reserve(floor_columns);
+  column_stack_.reserve(floor_columns);
+  heads_.reserve(static_cast<std::size_t>(options_.max_tracks));
   for (int dz = -1; dz <= 1; ++dz) {
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
@@ -460,22 +466,9 @@ void Tracker::Births() {
       const int z_tall =
           std::max(0, static_cast<int>(std::ceil(options_.birth_min_height_m / g.voxel_m() - 0.5)));
       if (z_max >= z_tall) {
-        const std::int64_t row = g.nx();
         for (const std::uint32_t i : queue_) {
-          if ((marks_[i] & kEvidenceMark) == 0) continue;
-          const Eigen::Vector3i c = g.Coords(i);
-          if (c.z() < z_tall) continue;
-          // Beyond the cell's sides counts as evidence: someone entering
-          // continues there.
-          auto evidence_at = [&](int dx, int dy) {
-            const int x = c.x() + dx;
-            const int y = c.y() + dy;
-            if (x < 0 || x >= g.nx() || y < 0 || y >= g.ny()) return true;
-            return (marks_[i + dx + static_cast<std::int64_t>(dy) * row] & kEvidenceMark) != 0;
-          };
-          if (evidence_at(-1, 0) && evidence_at(1, 0) && evidence_at(0, -1) && evidence_at(0, 1)) {
-            ++layer_evidence_[c.z()];
-          }
+          const int z = g.Coords(i).z();
+          if (z >= z_tall && InteriorEvidence(i)) ++layer_evidence_[z];
         }
       }
       bool tall = options_.birth_min_height_m <= 0.0;
@@ -484,10 +477,22 @@ void Tracker::Births() {
         if (layer_evidence_[z] * voxel_area >= kHeadAreaM2) tall = true;
         layer_evidence_[z] = 0;
       }
+      // Several people in one component (standing one behind the other, their
+      // hulls joined below): one track each, from the evidence nearest each
+      // one's upper body.
+      const int heads = grounded && tall && z_max >= z_tall ? FindHeads(z_tall) : 0;
+      if (heads >= 2) SplitEvidence(heads);
       for (const std::uint32_t i : queue_) marks_[i] &= static_cast<std::uint8_t>(~kEvidenceMark);
       if (grounded) {
         const std::uint64_t before = stats_.births + stats_.object_births + stats_.reacquisitions;
-        StartOrReacquire(evidence, sum, sum_sq, tall);
+        if (heads >= 2) {
+          for (int h = 0; h < heads; ++h) {
+            const Head& head = heads_[static_cast<std::size_t>(h)];
+            StartOrReacquire(head.evidence, head.sum, head.sum_sq, true);
+          }
+        } else {
+          StartOrReacquire(evidence, sum, sum_sq, tall);
+        }
         if (births_by_root_) {
           stats_.births_by_root +=
               stats_.births + stats_.object_births + stats_.reacquisitions - before;
@@ -586,6 +591,136 @@ bool Tracker::SeenPastTracks(std::uint32_t index, const Vector3d& p_W) const {
     }
   }
   return true;
+}
+
+bool Tracker::InteriorEvidence(std::uint32_t index) const {
+  const VoxelGrid& g = map_.grid();
+  if ((marks_[index] & kEvidenceMark) == 0) return false;
+  const Eigen::Vector3i c = g.Coords(index);
+  // Beyond the cell's sides counts as evidence: someone entering continues there.
+  auto evidence_at = [&](int dx, int dy) {
+    const int x = c.x() + dx;
+    const int y = c.y() + dy;
+    if (x < 0 || x >= g.nx() || y < 0 || y >= g.ny()) return true;
+    return (marks_[index + dx + static_cast<std::int64_t>(dy) * g.nx()] & kEvidenceMark) != 0;
+  };
+  return evidence_at(-1, 0) && evidence_at(1, 0) && evidence_at(0, -1) && evidence_at(0, 1);
+}
+
+int Tracker::FindHeads(int z_tall) {
+  const VoxelGrid& g = map_.grid();
+  const int nx = g.nx();
+  const int ny = g.ny();
+  // Floor plan of the interior evidence at or above z_tall: one column per
+  // (x, y) holding some.
+  columns_.clear();
+  for (const std::uint32_t i : queue_) {
+    if (g.Coords(i).z() < z_tall || !InteriorEvidence(i)) continue;
+    const std::uint32_t column = i % static_cast<std::uint32_t>(nx * ny);
+    if (column_labels_[column] != 0) continue;
+    column_labels_[column] = kUnlabelledColumn;
+    columns_.push_back(column);
+  }
+  // Its 8-connected pieces, largest first kept up to max_tracks.
+  heads_.clear();
+  std::size_t pieces = 0;
+  for (const std::uint32_t seed : columns_) {
+    if (column_labels_[seed] != kUnlabelledColumn) continue;
+    ++pieces;
+    const auto label =
+        static_cast<std::uint16_t>(std::min<std::size_t>(pieces, kUnlabelledColumn - 1));
+    column_stack_.clear();
+    column_stack_.push_back(seed);
+    column_labels_[seed] = label;
+    int count = 0;
+    double sx = 0.0, sy = 0.0;
+    while (!column_stack_.empty()) {
+      const std::uint32_t c = column_stack_.back();
+      column_stack_.pop_back();
+      const int x = static_cast<int>(c % static_cast<std::uint32_t>(nx));
+      const int y = static_cast<int>(c / static_cast<std::uint32_t>(nx));
+      ++count;
+      sx += g.CentreX(x);
+      sy += g.CentreY(y);
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int qx = x + dx;
+          const int qy = y + dy;
+          if (qx < 0 || qx >= nx || qy < 0 || qy >= ny) continue;
+          const auto q = static_cast<std::uint32_t>(qx + qy * nx);
+          if (column_labels_[q] != kUnlabelledColumn) continue;
+          column_labels_[q] = label;
+          column_stack_.push_back(q);
+        }
+      }
+    }
+    if (heads_.size() < static_cast<std::size_t>(options_.max_tracks)) {
+      heads_.push_back({label, count, sx / count, sy / count});
+    } else {
+      // Full: the smallest piece makes way for a larger one.
+      auto smallest =
+          std::min_element(heads_.begin(), heads_.end(),
+                           [](const Head& a, const Head& b) { return a.columns < b.columns; });
+      if (smallest->columns < count) *smallest = {label, count, sx / count, sy / count};
+    }
+  }
+  // A piece is a head when one of its layers alone holds a head's cross-section.
+  const double voxel_area = g.voxel_m() * g.voxel_m();
+  int heads = 0;
+  for (std::size_t h = 0; h < heads_.size(); ++h) {
+    Head head = heads_[h];
+    if (head.columns * voxel_area < kHeadAreaM2) continue;
+    int z_lo = g.nz();
+    int z_hi = -1;
+    for (const std::uint32_t i : queue_) {
+      const int z = g.Coords(i).z();
+      if (z < z_tall || column_labels_[i % static_cast<std::uint32_t>(nx * ny)] != head.label ||
+          !InteriorEvidence(i)) {
+        continue;
+      }
+      ++layer_evidence_[z];
+      z_lo = std::min(z_lo, z);
+      z_hi = std::max(z_hi, z);
+    }
+    bool tall = false;
+    for (int z = z_lo; z <= z_hi; ++z) {
+      if (layer_evidence_[z] * voxel_area >= kHeadAreaM2) tall = true;
+      layer_evidence_[z] = 0;
+    }
+    if (tall) heads_[static_cast<std::size_t>(heads++)] = head;
+  }
+  heads_.resize(static_cast<std::size_t>(heads));
+  for (const std::uint32_t c : columns_) column_labels_[c] = 0;
+  return heads;
+}
+
+void Tracker::SplitEvidence(int heads) {
+  const VoxelGrid& g = map_.grid();
+  for (Head& head : heads_) {
+    head.evidence = 0;
+    head.sum.setZero();
+    head.sum_sq.setZero();
+  }
+  // Each evidence voxel goes to the head nearest in the floor plan.
+  for (const std::uint32_t i : queue_) {
+    if ((marks_[i] & kEvidenceMark) == 0) continue;
+    const Eigen::Vector3i c = g.Coords(i);
+    const Vector3d p = g.Centre(c.x(), c.y(), c.z());
+    Head* nearest = nullptr;
+    double nearest_d2 = std::numeric_limits<double>::infinity();
+    for (int h = 0; h < heads; ++h) {
+      Head& head = heads_[static_cast<std::size_t>(h)];
+      const double dx = p.x() - head.x;
+      const double dy = p.y() - head.y;
+      if (dx * dx + dy * dy < nearest_d2) {
+        nearest_d2 = dx * dx + dy * dy;
+        nearest = &head;
+      }
+    }
+    ++nearest->evidence;
+    nearest->sum += p;
+    nearest->sum_sq += p.cwiseProduct(p);
+  }
 }
 
 void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vector3d& sum_sq,

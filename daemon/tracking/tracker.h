@@ -211,9 +211,10 @@ struct TrackerStats {
 ///    (promote_min_top_m).
 ///    The search is skipped when all unexplained voxels together stay below
 ///    birth_min_volume_m3 (everybody tracked: one gate test per UNKNOWN
-///    voxel). One component gives at most one track per cycle; two people who
-///    enter touching get their second track in a later cycle, once the first
-///    track's gate no longer covers the second.
+///    voxel). A component whose evidence above birth_min_height_m falls into
+///    several pieces in the floor plan, each with a head's cross-section
+///    (people standing one behind the other, their hulls joined lower down),
+///    starts a track per piece, each on the evidence nearest it.
 /// After warm-up a cycle allocates nothing. Memory beyond the VoxelMap: 5
 /// bytes per voxel (component search) and the filters of max_tracks tracks.
 /// Single-thread.
@@ -328,6 +329,31 @@ class Tracker {
   /// Cross-section of evidence that counts as a head in a layer (m^2): about a
   /// third of an adult head's, less than the tip of a low object's hull.
   static constexpr double kHeadAreaM2 = 0.01;
+  /// Interior evidence: the voxel and its four horizontal neighbours are
+  /// evidence of the component being examined (kEvidenceMark).
+  [[nodiscard]] bool InteriorEvidence(std::uint32_t index) const;
+  /// The people of the component in queue_ (its evidence marked): the
+  /// 8-connected pieces of the floor plan of its interior evidence at or above
+  /// layer z_tall of which a single layer holds a head's cross-section, at
+  /// most max_tracks of them, the largest. Fills heads_; returns their number.
+  int FindHeads(int z_tall);
+  /// Gives every evidence voxel of the component to the nearest of the first
+  /// `heads` heads_ in the floor plan (their evidence, sum and sum of squares).
+  void SplitEvidence(int heads);
+  struct Head {
+    std::uint16_t label = 0;  // In column_labels_ while FindHeads() runs.
+    int columns = 0;
+    double x = 0.0;  // Centre of the piece's columns.
+    double y = 0.0;
+    int evidence = 0;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+  };
+  static constexpr std::uint16_t kUnlabelledColumn = 0xFFFF;
+  std::vector<std::uint16_t> column_labels_;  // Per floor column; 0 between searches.
+  std::vector<std::uint32_t> columns_;        // Columns labelled this search.
+  std::vector<std::uint32_t> column_stack_;
+  std::vector<Head> heads_;           // Capacity max_tracks.
   std::vector<std::uint16_t> views_;  // Eroded by birth_view_margin_voxels.
   void ErodeViews();
   std::vector<Eigen::Vector3d> camera_centres_W_;

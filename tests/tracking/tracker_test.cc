@@ -261,6 +261,36 @@ TEST(TrackerTest, TwoPeoplePassingKeepTheirIds) {
   EXPECT_EQ(tracker.stats().deaths, 0u);
 }
 
+// Two people stand one behind the other from the first frame, their hulls
+// joined between their legs (a ghost of the visual hull): one component, but
+// two tracks from the first cycle, each on its person, and they stay. A person
+// with arms stretched out wide is one track.
+TEST(TrackerTest, PeopleOneBehindTheOtherInOneComponentGetATrackEach) {
+  Tracker tracker = OpenCellTracker();
+  const Vector3d a(2.0, 1.65, 0.9), b(2.0, 2.25, 0.9);
+  const Ellipsoid ghost{Vector3d(2.0, 1.95, 0.35), Vector3d(0.15, 0.3, 0.3)};
+  for (int k = 0; k <= 60; ++k) {
+    SetBlobs(&tracker, {Person(a), Person(b), ghost});
+    tracker.Step(StampNs(k));
+    const auto& tracks = tracker.tracks();
+    ASSERT_EQ(tracks.size(), 2u) << "frame " << k;
+    EXPECT_LT((Nearest(tracks, a)->centre_W - a).norm(), 0.15) << "frame " << k;
+    EXPECT_LT((Nearest(tracks, b)->centre_W - b).norm(), 0.15) << "frame " << k;
+    EXPECT_NE(Nearest(tracks, a)->id, Nearest(tracks, b)->id) << "frame " << k;
+  }
+  EXPECT_EQ(tracker.stats().births, 2u);
+
+  Tracker wide = OpenCellTracker();
+  const Vector3d c(2.0, 2.0, 0.9);
+  const Ellipsoid arms{Vector3d(2.0, 2.0, 1.4), Vector3d(0.9, 0.07, 0.07)};
+  for (int k = 0; k <= 30; ++k) {
+    SetBlobs(&wide, {Person(c), arms});
+    wide.Step(StampNs(k));
+    ASSERT_EQ(wide.tracks().size(), 1u) << "frame " << k;
+  }
+  EXPECT_EQ(wide.stats().births, 1u);
+}
+
 // A person crawls under a table: under the top nobody sees (OCCLUDED), so the
 // UNKNOWN blob shrinks to nothing and grows again on the far side. The track
 // stays alive (occluded) and keeps its id.
