@@ -23,6 +23,7 @@
 #include "app/pipeline_setup.h"
 #include "app/tracking_stage.h"
 #include "capture/recording.h"
+#include "capture/replay_source.h"
 #include "common/config_error.h"
 #include "common/input_file.h"
 #include "common/limits.h"
@@ -354,7 +355,9 @@ const Field<ReplaySourceConfig> kReplayFields[] = {
      .member = &ReplaySourceConfig::loop,
      .meaning = "After the last frame play again from the frame at `loop_start_s`, for ever; "
                 "capture times go on increasing (each repetition one loop length later, the "
-                "loop length being from that frame to one frame interval after the last)."},
+                "loop length being from that frame to one frame interval after the last; "
+                "looping cameras share the longest, so they stay in step). For load and soak "
+                "tests: at each repetition's start the scene jumps."},
     {.key = "loop_start_s",
      .member = &ReplaySourceConfig::loop_start_s,
      .meaning = "With `loop`: recording time (s) at which each repetition after the first "
@@ -1232,6 +1235,71 @@ void CheckSameCamera(Reader& r, const Item& entry, const Entries& e,
   }
 }
 
+}  // namespace
+
+std::string RecordedCameraName(const CameraConfig& camera) {
+  if (const auto* replay = std::get_if<ReplaySourceConfig>(&camera.source)) return replay->camera;
+  return camera.model.name;
+}
+
+void CheckRecordingForConfig(const Config& config, const std::string& recording) {
+  const std::string cameras_file = (std::filesystem::path(recording) / "cameras.yaml").string();
+  if (!std::filesystem::is_regular_file(cameras_file)) {
+    throw ConfigError("recording '" + recording +
+                      "' has no cameras.yaml: the calibration its frames were taken with cannot "
+                      "be checked against the config's cameras (hullguard synth and record "
+                      "write one)");
+  }
+  const std::vector<geometry::CameraModel> recorded = geometry::LoadCamerasFile(cameras_file);
+  std::vector<std::string> problems;
+  for (std::size_t i = 0; i < config.cameras.size(); ++i) {
+    const geometry::CameraModel& mine = config.cameras[i].model;
+    const std::string name = RecordedCameraName(config.cameras[i]);
+    const std::string which =
+        "cameras[" + std::to_string(i) + "] '" + mine.name + "' (recorded '" + name + "'): ";
+    const auto it = std::find_if(recorded.begin(), recorded.end(),
+                                 [&](const auto& c) { return c.name == name; });
+    if (it == recorded.end()) {
+      problems.push_back(which + "not in the recording");
+      continue;
+    }
+    if (mine.width != it->width || mine.height != it->height) {
+      problems.push_back(which + "size " + std::to_string(mine.width) + "x" +
+                         std::to_string(mine.height) + " in the config, " +
+                         std::to_string(it->width) + "x" + std::to_string(it->height) +
+                         " in the recording");
+    }
+    auto values = [](const auto& m) {
+      std::vector<double> out;
+      for (int r = 0; r < m.rows(); ++r) {
+        for (int c = 0; c < m.cols(); ++c) out.push_back(m(r, c));
+      }
+      return out;
+    };
+    for (const std::string& d :
+         {FirstDifference("K", values(mine.K), values(it->K), "in the recording"),
+          FirstDifference("distortion", mine.distortion, it->distortion, "in the recording"),
+          FirstDifference("R", values(mine.R_CW), values(it->R_CW), "in the recording"),
+          FirstDifference("t", values(mine.t_CW), values(it->t_CW), "in the recording")}) {
+      if (d.empty()) continue;
+      std::string problem = d;
+      if (const auto at = problem.find(" here, "); at != std::string::npos) {
+        problem.replace(at, 7, " in the config, ");
+      }
+      problems.push_back(which + problem);
+    }
+    if (capture::ReadRecordingCamera(recording, name).frames.empty()) {
+      problems.push_back(which + "no frames in the recording");
+    }
+  }
+  if (problems.empty()) return;
+  std::string message = cameras_file + ": the recording does not match the config's cameras: ";
+  for (std::size_t i = 0; i < problems.size(); ++i) message += (i ? "; " : "") + problems[i];
+  throw ConfigError(message);
+}
+
+namespace {
+
 /// A replay source's recording, opened as the replay will: its manifest (and
 /// frames index) must read, hold the camera and at least one frame, and the
 /// first frame must decode to the camera block's size, and the recording's
@@ -1260,6 +1328,12 @@ void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Item& 
                     std::to_string(looped) + " frame(s) of camera '" + replay.camera +
                     "' to loop, at least 2 needed (its last frame is at " +
                     ExactNumber(static_cast<double>(rec.frames.back().time_ns) * 1e-9) + " s)");
+        return;
+      }
+      try {
+        (void)capture::LoopLengthNs(rec, replay.loop_start_s);
+      } catch (const common::ConfigError& error) {
+        r.Error(directory.line, directory.path, error.what());
         return;
       }
     }

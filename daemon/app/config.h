@@ -255,6 +255,19 @@ struct Config {
 /// not LoadConfig.
 [[nodiscard]] std::vector<std::string> SimSpeedNotices(const Config& config);
 
+/// The recording's camera that config camera `camera` plays in `hullguard
+/// replay`: its replay source's `camera` where it has one, else its own name.
+[[nodiscard]] std::string RecordedCameraName(const CameraConfig& camera);
+
+/// Checks that `recording` (a folder of `hullguard synth` or `record`) can be
+/// replayed with `config`'s cameras: its cameras.yaml holds each config
+/// camera's recorded camera (RecordedCameraName) with the same size,
+/// intrinsics, distortion and pose (a recording of another rig, or cameras
+/// swapped, would carve each silhouette with another camera's pose), and
+/// each has at least one frame.
+/// @throws common::ConfigError naming the recording's file and every problem.
+void CheckRecordingForConfig(const Config& config, const std::string& recording);
+
 /// "4 cameras (4 sim), depth 9, 30 Hz": a one-line summary for --check-config.
 [[nodiscard]] std::string Summary(const Config& config);
 

@@ -105,6 +105,15 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
     }
   }
 
+  // Looping replay cameras share one loop period, the longest of theirs
+  // (capture::ReplayOptions::loop_period_ns), so that they stay in step.
+  std::int64_t loop_period_ns = 0;
+  for (std::size_t i = 0; i < config.cameras.size(); ++i) {
+    const auto* replay = std::get_if<ReplaySourceConfig>(&config.cameras[i].source);
+    if (replay == nullptr || !replay->loop) continue;
+    loop_period_ns =
+        std::max(loop_period_ns, capture::LoopLengthNs(*recordings[i], replay->loop_start_s));
+  }
   std::vector<pipeline::PipelineCamera> cameras;
   for (std::size_t i = 0; i < config.cameras.size(); ++i) {
     const CameraConfig& c = config.cameras[i];
@@ -115,7 +124,8 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
                                                             : capture::ReplayPacing::kFast,
                                  .preload = replay->preload,
                                  .loop = replay->loop,
-                                 .loop_start_s = replay->loop_start_s});
+                                 .loop_start_s = replay->loop_start_s,
+                                 .loop_period_ns = loop_period_ns});
       if (replay->preload) {
         log::Info("camera '{}': {} frames of '{}' preloaded, {:.0f} MB", c.model.name,
                   source->frames(), replay->directory,

@@ -185,12 +185,12 @@ RecordingCamera ReadSynth(const YAML::Node& root, const std::string& manifest,
   }
   // Masks are preferred: they are the ground truth the colour frames show.
   r.kind = masks ? FrameKind::kMask : FrameKind::kRgb;
-  // A free-running camera's offset only matters modulo its period. The times
-  // are computed exactly as they always were, so replays keep their digests.
-  const double period = 1.0 / r.rate_hz;
-  double offset = std::fmod(r.time_offset_s, period);
-  if (offset < 0.0) offset += period;
-  const std::chrono::duration<double> offset_s(offset);
+  // Frame i shows the scene at i / rate_hz plus the camera's offset (the
+  // simulator renders it then), and is stamped so: a negative offset is a
+  // frame taken before the set's nominal time, never one a period later (its
+  // stamp would claim a newer view than it holds). Frame 0 of such a camera
+  // lies before recording time 0.
+  const std::chrono::duration<double> offset_s(r.time_offset_s);
   const std::string folder = std::string(masks ? "masks/" : "colour/") + camera + "/";
   r.frames.resize(static_cast<std::size_t>(frames));
   for (int i = 0; i < frames; ++i) {

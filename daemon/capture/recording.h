@@ -54,7 +54,7 @@ struct RecordingCamera {
   /// Synth: the nominal rate. Record: the mean rate over the frames (0 with
   /// fewer than two frames).
   double rate_hz = 30.0;
-  double time_offset_s = 0.0;  ///< Synth: the camera's capture offset within a period.
+  double time_offset_s = 0.0;  ///< Synth: the camera's capture offset (s), frame times include it.
   /// Record: the host stamp of recording time 0, the first frame of the
   /// camera that started first. Synth: 0.
   std::int64_t start_ns = 0;

@@ -8,27 +8,52 @@
 
 namespace hg::capture {
 
+namespace {
+
+int FirstLoopFrame(const RecordingCamera& recording, double loop_start_s) {
+  const auto& f = recording.frames;
+  const auto start_ns = static_cast<std::int64_t>(std::llround(loop_start_s * 1e9));
+  return static_cast<int>(
+      std::find_if(f.begin(), f.end(),
+                   [&](const RecordedFrame& r) { return r.time_ns >= start_ns; }) -
+      f.begin());
+}
+
+}  // namespace
+
+std::int64_t LoopLengthNs(const RecordingCamera& recording, double loop_start_s) {
+  const auto& f = recording.frames;
+  const int count = static_cast<int>(f.size());
+  const int first = FirstLoopFrame(recording, loop_start_s);
+  const std::string what =
+      "replay of '" + recording.directory + "', camera '" + recording.camera + "': ";
+  if (first >= count - 1) {
+    throw common::ConfigError(
+        what + "loop_start_s " + std::to_string(loop_start_s) +
+        " leaves fewer than two frames to loop" +
+        (count > 0 ? " (the last frame is at " +
+                         std::to_string(static_cast<double>(f.back().time_ns) * 1e-9) + " s)"
+                   : std::string()));
+  }
+  const std::int64_t span = f[count - 1].time_ns - f[first].time_ns;
+  if (span <= 0) {
+    throw common::ConfigError(what + "the frames to loop (from loop_start_s " +
+                              std::to_string(loop_start_s) +
+                              ") end no later than they start: the recording's capture times "
+                              "stepped back, so it has no loop length");
+  }
+  // One frame interval after the last frame, the loop's first frame again.
+  return span + span / (count - 1 - first);
+}
+
 ReplaySource::ReplaySource(RecordingCamera recording, SimClock clock, const ReplayOptions& options)
     : recording_(std::move(recording)), clock_(clock), pacing_(options.pacing) {
   const int count = frames();
   if (options.loop && count > 0) {
     const auto& f = recording_.frames;
-    const auto start_ns = static_cast<std::int64_t>(std::llround(options.loop_start_s * 1e9));
-    loop_first_ = static_cast<int>(
-        std::find_if(f.begin(), f.end(),
-                     [&](const RecordedFrame& r) { return r.time_ns >= start_ns; }) -
-        f.begin());
-    if (loop_first_ >= count - 1) {
-      throw common::ConfigError(
-          "replay of '" + recording_.directory + "', camera '" + recording_.camera +
-          "': loop_start_s " + std::to_string(options.loop_start_s) +
-          " leaves fewer than two frames to loop (the last frame is at " +
-          std::to_string(static_cast<double>(f.back().time_ns) * 1e-9) + " s)");
-    }
-    // One frame interval after the last frame, the loop's first frame again.
-    const std::int64_t interval =
-        (f[count - 1].time_ns - f[loop_first_].time_ns) / (count - 1 - loop_first_);
-    loop_period_ns_ = f[count - 1].time_ns - f[loop_first_].time_ns + interval;
+    loop_first_ = FirstLoopFrame(recording_, options.loop_start_s);
+    loop_period_ns_ = std::max(LoopLengthNs(recording_, options.loop_start_s),
+                               options.loop_period_ns);
     std::uint64_t last_index = 0;
     for (const RecordedFrame& r : f) last_index = std::max(last_index, r.source_index);
     index_stride_ = last_index + 1;

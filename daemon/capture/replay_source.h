@@ -45,7 +45,22 @@ struct ReplayOptions {
   /// stretch out of the loop.
   bool loop = false;
   double loop_start_s = 0.0;
+  /// With `loop`: how much later each repetition plays, at least the
+  /// camera's own loop length (LoopLengthNs; 0: exactly that). Cameras played
+  /// together must share one (the longest of theirs): each keeps its own
+  /// frames' times, so their frames stay in step however many repetitions
+  /// go by, where lengths one frame apart (a camera whose recording dropped
+  /// its last frame) would drift a frame further apart every repetition.
+  std::int64_t loop_period_ns = 0;
 };
+
+/// The length of one repetition of `recording`'s loop from `loop_start_s`
+/// (ReplayOptions::loop): from the first frame at or after it to one frame
+/// interval (the looped frames' mean) after the last frame.
+/// @throws common::ConfigError when fewer than two frames lie at or after
+/// loop_start_s, or when the last of them is not later than the first (the
+/// recording's stamps stepped back).
+[[nodiscard]] std::int64_t LoopLengthNs(const RecordingCamera& recording, double loop_start_s);
 
 /// Plays one camera of a recording: masks (FrameKind::kMask), Mono8 or RGB
 /// frames as recorded (synth recordings with masks play their masks, else
@@ -55,8 +70,7 @@ struct ReplayOptions {
 /// by sleeping in Next() (capture thread only).
 class ReplaySource : public CameraSource {
  public:
-  /// @throws common::ConfigError when fewer than two frames lie at or after
-  /// a loop's start.
+  /// @throws common::ConfigError as LoopLengthNs() with `loop`.
   ReplaySource(RecordingCamera recording, SimClock clock, const ReplayOptions& options);
   ReplaySource(RecordingCamera recording, SimClock clock,
                ReplayPacing pacing = ReplayPacing::kRealtime)

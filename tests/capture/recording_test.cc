@@ -334,6 +334,76 @@ TEST_F(ReplayLoopTest, LoopsFromItsStartWithCaptureTimesGoingOn) {
   }
 }
 
+// Two cameras of one recording, the second of which dropped its last frame:
+// with one loop period for both (the longer), each repetition plays their
+// frames at the same times again, however many go by.
+TEST_F(ReplayLoopTest, CamerasSharingALoopPeriodStayInStep) {
+  {
+    RecordingWriter writer(dir_.string(), {Camera("a", 8, 6), Camera("b", 8, 6)}, "test");
+    for (std::uint64_t i = 0; i < 5; ++i) {
+      for (int c = 0; c < 2; ++c) {
+        if (c == 1 && i == 4) continue;
+        Frame f = RandomFrame(FrameKind::kMono, 8, 6, i);
+        f.stamp_ns = 9'000'000'000 + static_cast<std::int64_t>(i) * 50'000'000;
+        f.index = i;
+        EXPECT_TRUE(writer.Write(c, i, f));
+      }
+    }
+  }
+  const RecordingCamera a = ReadRecordingCamera(dir_.string(), "a");
+  const RecordingCamera b = ReadRecordingCamera(dir_.string(), "b");
+  ASSERT_EQ(b.frames.size(), 4U);
+  EXPECT_EQ(LoopLengthNs(a, 0.1), 150'000'000);
+  EXPECT_EQ(LoopLengthNs(b, 0.1), 100'000'000);
+  const std::int64_t period = std::max(LoopLengthNs(a, 0.1), LoopLengthNs(b, 0.1));
+  const SimClock clock = SimClock::Now();
+  ReplaySource sa(a, clock, ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = period});
+  ReplaySource sb(b, clock, ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = period});
+  // Each camera's frames at the recording's times plus whole periods.
+  for (auto [source, stride] : {std::pair{&sa, 5U}, std::pair{&sb, 4U}}) {
+    Frame f;
+    int looped = 0;
+    const auto until = std::chrono::steady_clock::now() + 700ms;
+    while (std::chrono::steady_clock::now() < until) {
+      if (!source->Next(&f, 50ms)) continue;
+      const std::uint64_t frame = f.index % stride;
+      const std::uint64_t repetition = f.index / stride;
+      EXPECT_EQ(f.stamp_ns, clock.epoch_ns + static_cast<std::int64_t>(frame) * 50'000'000 +
+                                static_cast<std::int64_t>(repetition) * period)
+          << "camera with " << stride << " frames, frame " << f.index;
+      looped += repetition >= 2 ? 1 : 0;
+    }
+    EXPECT_GT(looped, 0) << "700 ms reach the second repetition (from 400 ms)";
+  }
+  // The camera's own length, never shorter: a shorter period is not taken.
+  ReplaySource own(a, clock, ReplayOptions{.pacing = ReplayPacing::kFast, .loop = true,
+                                           .loop_start_s = 0.1, .loop_period_ns = 1});
+  (void)own;
+}
+
+// Capture times that step back (a host clock set back while recording) can
+// leave a loop with no length: refused, rather than a capture thread spinning
+// for ever on frames that are always due.
+TEST_F(ReplayLoopTest, ALoopWhoseTimesStepBackIsRefused) {
+  {
+    RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
+    for (std::uint64_t i = 0; i < 5; ++i) {
+      Frame f = RandomFrame(FrameKind::kMono, 8, 6, i);
+      f.stamp_ns = 9'000'000'000 + (i < 3 ? static_cast<std::int64_t>(i) * 50'000'000 : -500'000'000);
+      f.index = i;
+      EXPECT_TRUE(writer.Write(0, i, f));
+    }
+  }
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "cam");
+  try {
+    (void)ReplaySource(rec, SimClock::Now(), ReplayOptions{.loop = true, .loop_start_s = 0.0});
+    ADD_FAILURE() << "no error";
+  } catch (const common::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("stepped back"), std::string::npos) << e.what();
+  }
+  EXPECT_NO_THROW(ReplaySource(rec, SimClock::Now(), ReplayOptions{}));
+}
+
 TEST_F(ReplayLoopTest, PreloadedFramesNeedNoFilesAndUnreadableOnesCountEachTime) {
   RecordingCamera rec = Write5();
   // Frame 3 is garbage on disk.
@@ -366,25 +436,28 @@ TEST_F(ReplayLoopTest, ALoopOfFewerThanTwoFramesIsRefused) {
       ReplaySource(rec, SimClock::Now(), ReplayOptions{.loop = true, .loop_start_s = 0.15}));
 }
 
-// The synth layout keeps its frame times: i / rate_hz plus the camera's
-// offset modulo the period, as `hullguard replay` digests depend on them.
+// The synth layout's frame times: i / rate_hz plus the camera's offset, the
+// instant the simulator rendered (`hullguard replay` digests depend on them).
+// A negative offset is a frame taken earlier, never a period later.
 TEST_F(RecordingTest, ReadsTheSynthLayout) {
   fs::create_directories(dir_ / "masks" / "a");
   std::ofstream(dir_ / "manifest.yaml")
       << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 3, masks: true, "
-         "colour: false}\ncameras:\n  - {name: a, time_offset_s: 0.04}\n  - {name: b}\n";
+         "colour: false}\ncameras:\n  - {name: a, time_offset_s: 0.04}\n  - {name: b, "
+         "time_offset_s: -0.006}\n";
   silhouette::WriteGreyImage((dir_ / "masks" / "a" / "000001.png").string(),
                              common::ImageU8(6, 4, 255));
   const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "a");
   EXPECT_EQ(rec.layout, RecordingLayout::kSynth);
   EXPECT_EQ(rec.kind, FrameKind::kMask);
   ASSERT_EQ(rec.frames.size(), 3U);
-  const double offset = 0.04 - 1.0 / 30.0;
+  const RecordingCamera early = ReadRecordingCamera(dir_.string(), "b");
   for (int i = 0; i < 3; ++i) {
     EXPECT_EQ(rec.frames[i].time_ns,
               std::chrono::duration_cast<std::chrono::nanoseconds>(
-                  std::chrono::duration<double>(i / 30.0) + std::chrono::duration<double>(offset))
+                  std::chrono::duration<double>(i / 30.0) + std::chrono::duration<double>(0.04))
                   .count());
+    EXPECT_NEAR(static_cast<double>(early.frames[i].time_ns), (i / 30.0 - 0.006) * 1e9, 1.0);
   }
   EXPECT_EQ(rec.frames[1].file, "masks/a/000001.png");
   ReplaySource source(rec, SimClock{});

@@ -367,6 +367,57 @@ TEST_F(RecordCliTest, ReplayChecksSynthRecordingsAgainstTheirGroundTruth) {
   EXPECT_EQ(truth.free, 0) << small.out;
 }
 
+// `hullguard replay` plays a recording with the config's cameras only when
+// the recording's calibration is theirs: cameras swapped in the recording,
+// or no cameras.yaml, exit 2 with the file and the camera named. Frame sets
+// missing for every camera are a gap in time: the cameras time out
+// (degraded, nothing inside a person free), as they would in the daemon.
+TEST_F(RecordCliTest, ReplayChecksTheCalibrationAndTimesOutAGapInTheRecording) {
+  const fs::path data = fs::path(HG_SOURCE_DIR) / "tests/data";
+  const std::string config = (data / "small_cell_config.yaml").string();
+  const fs::path rec = dir_ / "rec";
+  fs::copy(data / "small_cell_recording", rec, fs::copy_options::recursive);
+  const std::string replay = "replay --config " + config + " --recording " + rec.string();
+
+  const std::string cameras = ReadFile(rec / "cameras.yaml");
+  std::string swapped = std::regex_replace(cameras, std::regex("name: cam0"), "name: camX");
+  swapped = std::regex_replace(swapped, std::regex("name: cam1"), "name: cam0");
+  swapped = std::regex_replace(swapped, std::regex("name: camX"), "name: cam1");
+  ASSERT_NE(swapped, cameras);
+  std::ofstream(rec / "cameras.yaml") << swapped;
+  auto r = Hullguard(replay);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find((rec / "cameras.yaml").string() + ": the recording does not match"),
+            std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("cameras[0] 'cam0' (recorded 'cam0'): "), std::string::npos) << r.err;
+  EXPECT_EQ(r.out.find("digest"), std::string::npos) << r.out;
+
+  fs::remove(rec / "cameras.yaml");
+  r = Hullguard(replay);
+  EXPECT_EQ(r.code, 2) << r.out << r.err;
+  EXPECT_NE(r.err.find("has no cameras.yaml"), std::string::npos) << r.err;
+
+  std::ofstream(rec / "cameras.yaml") << cameras;
+  r = Hullguard(replay);
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find(", 0 cycles degraded"), std::string::npos) << r.out;
+
+  // Frame sets 3 to 10 (267 ms, over the 200 ms camera timeout) gone.
+  for (const char* camera : {"cam0", "cam1", "cam2"}) {
+    for (int i = 3; i <= 10; ++i) {
+      char name[16];
+      std::snprintf(name, sizeof(name), "%06d.png", i);
+      ASSERT_TRUE(fs::remove(rec / "masks" / camera / name));
+    }
+  }
+  r = Hullguard(replay);
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find("24 frames missing or unreadable"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find(", 0 cycles degraded"), std::string::npos) << r.out;
+  EXPECT_EQ(ParseTruthLine(r.out).free, 0) << r.out;
+}
+
 // A ground truth that puts a person where the cameras certify the space free
 // (alice moved 2 m across the cell, in every frame) fails the replay, with
 // the points named; --truth and --no-truth pick the file or skip the check.

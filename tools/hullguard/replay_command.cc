@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <random>
@@ -263,8 +264,21 @@ class TruthCoverage {
   std::vector<pipeline::GridRun> occupied_scratch_, occluded_scratch_;
 };
 
+/// The earliest recorded capture time of frame set `set` over the cameras.
+std::int64_t FirstCaptureNs(const std::vector<std::unique_ptr<capture::ReplaySource>>& readers,
+                            int set) {
+  std::int64_t first = std::numeric_limits<std::int64_t>::max();
+  for (const auto& reader : readers) {
+    if (set < reader->frames()) {
+      first = std::min(first, reader->recording().frames[static_cast<std::size_t>(set)].time_ns);
+    }
+  }
+  return first;
+}
+
 int RunReplay(const ReplayFlags& f) {
   const app::Config config = app::LoadConfig(f.config);
+  app::CheckRecordingForConfig(config, f.recording);
   pipeline::PipelineOptions options = app::MakePipelineOptions(config);
   if (f.threads > 0) options.octree_threads = f.threads;
   // Recording time 0 is the epoch 0: stamps are the frames' capture times.
@@ -276,7 +290,7 @@ int RunReplay(const ReplayFlags& f) {
   std::int64_t end_ns = 0;  // Recording time of the last frame of any camera.
   for (const app::CameraConfig& c : config.cameras) {
     readers.push_back(std::make_unique<capture::ReplaySource>(
-        capture::ReadRecordingCamera(f.recording, c.model.name), clock));
+        capture::ReadRecordingCamera(f.recording, app::RecordedCameraName(c)), clock));
     const capture::RecordingCamera& r = readers.back()->recording();
     frames = std::max(frames, readers.back()->frames());
     synth = r.layout == capture::RecordingLayout::kSynth;
@@ -318,19 +332,33 @@ int RunReplay(const ReplayFlags& f) {
     // newest capture time of the set.
     if (f.frames > 0) frames = std::min(frames, f.frames);
     for (int i = 0; i < frames; ++i) {
-      std::int64_t newest = 0;
+      // The set's capture time from the recording's frame times, whether or
+      // not its frames can be read: a set missing for every camera is a gap
+      // in time, after which cameras time out as in the daemon.
+      std::int64_t newest = std::numeric_limits<std::int64_t>::min();
+      for (const auto& reader : readers) {
+        if (i < reader->frames()) {
+          newest = std::max(newest, reader->recording().frames[static_cast<std::size_t>(i)].time_ns);
+        }
+      }
       for (std::size_t c = 0; c < readers.size(); ++c) {
         if (!readers[c]->ReadFrame(i, &frame)) {
           ++missing;
           continue;
         }
-        newest = std::max(newest, frame.stamp_ns);
         pipeline.Feed(static_cast<int>(c), frame);
       }
       last = pipeline.Step(newest);
       degraded += last->health.degraded ? 1 : 0;
       AddSnapshot(*last, &digest);
-      if (truth) truth->Check(i, *last);
+      if (truth) {
+        // The occupancy holds for its stamp (docs/dds.md): checked against
+        // the frame set captured then, the latest whose first capture is not
+        // after the stamp (the set itself unless its frames are missing).
+        int held = i;
+        while (held > 0 && FirstCaptureNs(readers, held) > last->stamp_ns) --held;
+        truth->Check(held, *last);
+      }
     }
     std::printf("replay: %d frame sets of %zu cameras, %" PRIu64
                 " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
@@ -349,7 +377,8 @@ int RunReplay(const ReplayFlags& f) {
     // recording time, after every frame captured by then has been fed in
     // capture order (the background model sees them all, as in the daemon).
     const double period_ns = 1e9 / config.timing.rate_hz;
-    int cycles = static_cast<int>(std::floor(static_cast<double>(end_ns) / period_ns)) + 1;
+    // The last cycle at or after the last frame: every frame is fed.
+    int cycles = static_cast<int>(std::ceil(static_cast<double>(end_ns) / period_ns)) + 1;
     if (f.frames > 0) cycles = std::min(cycles, f.frames);
     std::vector<int> next(readers.size(), 0);
     for (int k = 0; k < cycles; ++k) {
