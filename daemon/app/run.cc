@@ -219,6 +219,7 @@ int RunPipeline(const Config& config, double duration_s) {
   // each snapshot, a shared-pointer copy), tracks on the tracking thread:
   // the fusion cycle never waits on the network.
   std::unique_ptr<SnapshotStage> publish_stage;
+  std::function<void()> check_publisher = [] {};
 #ifdef HG_WITH_DDS
   publish::DdsPublisher publisher(
       {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled, config.tracking.enabled},
@@ -235,6 +236,31 @@ int RunPipeline(const Config& config, double duration_s) {
       publisher.PublishTracks(c.sequence, c.stamp_ns, c.degraded, c.tracks);
     };
   }
+  // From the main loop: another publisher on the topics, and samples too old
+  // to send, each logged when it changes.
+  int other_publishers = 0;
+  std::uint64_t stale_seen = 0;
+  check_publisher = [&] {
+    const int others = publisher.CheckOtherPublishers();
+    if (others > 0 && other_publishers == 0) {
+      log::Error(
+          "another publisher writes {} on DDS domain {} ({} writer(s) besides this daemon): a "
+          "controller cannot tell its samples from this cell's; every status sample says "
+          "degraded until it is gone (give each cell its own dds.topic_prefix or domain_id)",
+          publisher.status_topic(), config.dds.domain_id, others);
+    } else if (others == 0 && other_publishers > 0) {
+      log::Info("the other publisher of {} is gone", publisher.status_topic());
+    }
+    other_publishers = others;
+    const std::uint64_t stale = publisher.stale_dropped();
+    if (stale != stale_seen) {
+      log::Warn(
+          "{} sample(s) not published: older than 0.5 s when their turn came (the daemon was "
+          "stopped or starved of CPU); {} since start",
+          stale - stale_seen, stale);
+      stale_seen = stale;
+    }
+  };
 #else
   if (config.dds.enabled) {
     log::Warn("built without Cyclone DDS: nothing is published");
@@ -281,11 +307,16 @@ int RunPipeline(const Config& config, double duration_s) {
   // --duration counts from here: the time running, start-up not included.
   const auto start = std::chrono::steady_clock::now();
   auto next_report = start + std::chrono::seconds(1);
+  auto next_publisher_check = start;
   while (!g_stop.load()) {
     heartbeats.Beat(main_heartbeat);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
     const auto now = std::chrono::steady_clock::now();
     if (duration_s > 0 && now - start >= std::chrono::duration<double>(duration_s)) break;
+    if (now >= next_publisher_check) {
+      next_publisher_check = now + std::chrono::milliseconds(200);
+      check_publisher();
+    }
     if (g_hangup.exchange(false)) {
       log::Warn(
           "SIGHUP ignored: the config is not reloaded; restart to apply a change "

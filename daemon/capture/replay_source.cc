@@ -52,8 +52,8 @@ ReplaySource::ReplaySource(RecordingCamera recording, SimClock clock, const Repl
   if (options.loop && count > 0) {
     const auto& f = recording_.frames;
     loop_first_ = FirstLoopFrame(recording_, options.loop_start_s);
-    loop_period_ns_ = std::max(LoopLengthNs(recording_, options.loop_start_s),
-                               options.loop_period_ns);
+    loop_period_ns_ =
+        std::max(LoopLengthNs(recording_, options.loop_start_s), options.loop_period_ns);
     std::uint64_t last_index = 0;
     for (const RecordedFrame& r : f) last_index = std::max(last_index, r.source_index);
     index_stride_ = last_index + 1;

@@ -1,6 +1,9 @@
 #include "publish/dds_publisher.h"
 
+#include <time.h>
+
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstddef>
 #include <stdexcept>
@@ -110,6 +113,7 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
       occupancy_topic_(OccupancyTopicName(config.topic_prefix)),
       status_topic_(StatusTopicName(config.topic_prefix)),
       tracks_topic_(TracksTopicName(config.topic_prefix)),
+      max_age_(config.max_age),
       samples_(std::make_unique<Samples>()),
       tracks_samples_(std::make_unique<TracksSamples>()) {
   CyclePeriod(rate_hz);  // Validates the rate even when disabled.
@@ -120,6 +124,14 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
   occupancy_writer_ =
       dds::Writer(participant_, occupancy_topic_entity_, OccupancyWriterQos(rate_hz).get());
   status_writer_ = dds::Writer(participant_, status_topic_entity_, StatusWriterQos(rate_hz).get());
+  {
+    // Reliable (matches the status writers), keeps one sample, which it
+    // never reads; no deadline, so it matches any writer's.
+    dds::Qos qos;
+    SetCommon(qos);
+    dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+    status_watch_ = dds::Reader(participant_, status_topic_entity_, qos.get());
+  }
   if (config.tracks) {
     tracks_topic_entity_ = dds::Topic(participant_, &hullguard_Tracks_desc, tracks_topic_);
     tracks_writer_ =
@@ -129,8 +141,37 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
 
 DdsPublisher::~DdsPublisher() = default;
 
+bool DdsPublisher::TooOld(std::int64_t stamp_ns) {
+  if (max_age_.count() <= 0) return false;
+  timespec now{};
+  clock_gettime(CLOCK_REALTIME, &now);
+  const std::int64_t now_ns = static_cast<std::int64_t>(now.tv_sec) * 1'000'000'000 + now.tv_nsec;
+  if (now_ns - stamp_ns <= max_age_.count()) return false;
+  stale_dropped_.fetch_add(1, std::memory_order_relaxed);
+  return true;
+}
+
+int DdsPublisher::CheckOtherPublishers() {
+  if (!status_watch_) return 0;
+  dds_instance_handle_t own = 0;
+  if (dds_get_instance_handle(status_writer_.handle(), &own) < 0) return 0;
+  std::array<dds_instance_handle_t, 16> matched{};
+  const dds_return_t n =
+      dds_get_matched_publications(status_watch_.handle(), matched.data(), matched.size());
+  if (n < 0) return 0;
+  // n may exceed what fits: every writer beyond the array is another's.
+  int others = std::max(0, static_cast<int>(n) - static_cast<int>(matched.size()));
+  for (std::size_t i = 0; i < std::min<std::size_t>(static_cast<std::size_t>(n), matched.size());
+       ++i) {
+    others += matched[i] != own ? 1 : 0;
+  }
+  other_publishers_.store(others > 0, std::memory_order_relaxed);
+  return others;
+}
+
 void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   if (!enabled_) return;
+  if (TooOld(snapshot.stamp_ns)) return;
   Samples& s = *samples_;
 
   hullguard_Occupancy& occ = s.occupancy;
@@ -152,7 +193,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   hullguard_Status& st = s.status;
   st.sequence = snapshot.sequence;
   st.stamp_ns = snapshot.stamp_ns;
-  st.degraded = health.degraded;
+  st.degraded = health.degraded || other_publishers_.load(std::memory_order_relaxed);
   Grow(st.cameras, s.cameras, health.cameras.size());
   for (std::size_t i = 0; i < health.cameras.size(); ++i) {
     const pipeline::CameraHealth& c = health.cameras[i];
@@ -187,6 +228,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
 void DdsPublisher::PublishTracks(std::uint64_t sequence, std::int64_t stamp_ns, bool degraded,
                                  std::span<const tracking::Track> tracks) {
   if (!tracks_writer_) return;
+  if (TooOld(stamp_ns)) return;
   TracksSamples& s = *tracks_samples_;
   hullguard_Tracks& out = s.tracks;
   out.sequence = sequence;

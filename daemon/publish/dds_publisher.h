@@ -27,6 +27,12 @@ struct PublisherConfig {
   /// Creates the tracks topic and writer (the daemon's tracking.enabled);
   /// false: PublishTracks() does nothing.
   bool tracks = true;
+  /// A snapshot (or tracks sample) whose stamp is older than this when its
+  /// turn to be written comes is not written (counted in stale_dropped()):
+  /// after the process was stopped (SIGSTOP, a debugger, a frozen VM) or
+  /// starved, the first sample would otherwise describe the cell as it was
+  /// then. Zero: no limit.
+  std::chrono::nanoseconds max_age = std::chrono::milliseconds(500);
 };
 
 /// Topic names for a prefix ("hullguard" -> "hullguard/occupancy").
@@ -99,6 +105,21 @@ class DdsPublisher {
     return tracks_write_failures_.load(std::memory_order_relaxed);
   }
 
+  /// Snapshots and tracks samples not written because they were older than
+  /// PublisherConfig::max_age. Thread-safe.
+  [[nodiscard]] std::uint64_t stale_dropped() const {
+    return stale_dropped_.load(std::memory_order_relaxed);
+  }
+
+  /// Writers of this publisher's status topic other than its own, on its
+  /// domain: another publisher under the same prefix (a second daemon, or a
+  /// config copied from another cell), whose samples a controller could not
+  /// tell from this one's. 0 when disabled. While it is not 0 every status
+  /// sample says degraded. Thread-safe; call it at most every few hundred
+  /// milliseconds (it asks Cyclone DDS for the matched writers and updates
+  /// the flag Publish() reads).
+  [[nodiscard]] int CheckOtherPublishers();
+
   [[nodiscard]] bool enabled() const { return enabled_; }
   [[nodiscard]] const std::string& occupancy_topic() const { return occupancy_topic_; }
   [[nodiscard]] const std::string& status_topic() const { return status_topic_; }
@@ -107,6 +128,8 @@ class DdsPublisher {
  private:
   struct Samples;        // idlc-generated samples and their reused buffers.
   struct TracksSamples;  // The same for PublishTracks (its own thread).
+  /// Whether a sample stamped `stamp_ns` is older than max_age_ (counted).
+  bool TooOld(std::int64_t stamp_ns);
 
   bool enabled_;
   std::string occupancy_topic_;
@@ -120,6 +143,12 @@ class DdsPublisher {
   dds::Writer occupancy_writer_;
   dds::Writer status_writer_;
   dds::Writer tracks_writer_;
+  /// Reads nothing: its matched writers tell CheckOtherPublishers() who else
+  /// writes the status topic.
+  dds::Reader status_watch_;
+  std::chrono::nanoseconds max_age_;
+  std::atomic<bool> other_publishers_{false};
+  std::atomic<std::uint64_t> stale_dropped_{0};
   std::unique_ptr<Samples> samples_;
   std::unique_ptr<TracksSamples> tracks_samples_;
   std::uint64_t write_failures_ = 0;

@@ -357,8 +357,10 @@ TEST_F(ReplayLoopTest, CamerasSharingALoopPeriodStayInStep) {
   EXPECT_EQ(LoopLengthNs(b, 0.1), 100'000'000);
   const std::int64_t period = std::max(LoopLengthNs(a, 0.1), LoopLengthNs(b, 0.1));
   const SimClock clock = SimClock::Now();
-  ReplaySource sa(a, clock, ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = period});
-  ReplaySource sb(b, clock, ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = period});
+  ReplaySource sa(a, clock,
+                  ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = period});
+  ReplaySource sb(b, clock,
+                  ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = period});
   // Each camera's frames at the recording's times plus whole periods.
   for (auto [source, stride] : {std::pair{&sa, 5U}, std::pair{&sb, 4U}}) {
     Frame f;
@@ -376,8 +378,10 @@ TEST_F(ReplayLoopTest, CamerasSharingALoopPeriodStayInStep) {
     EXPECT_GT(looped, 0) << "700 ms reach the second repetition (from 400 ms)";
   }
   // The camera's own length, never shorter: a shorter period is not taken.
-  ReplaySource own(a, clock, ReplayOptions{.pacing = ReplayPacing::kFast, .loop = true,
-                                           .loop_start_s = 0.1, .loop_period_ns = 1});
+  ReplaySource own(
+      a, clock,
+      ReplayOptions{
+          .pacing = ReplayPacing::kFast, .loop = true, .loop_start_s = 0.1, .loop_period_ns = 1});
   (void)own;
 }
 
@@ -389,7 +393,8 @@ TEST_F(ReplayLoopTest, ALoopWhoseTimesStepBackIsRefused) {
     RecordingWriter writer(dir_.string(), {Camera("cam", 8, 6)}, "test");
     for (std::uint64_t i = 0; i < 5; ++i) {
       Frame f = RandomFrame(FrameKind::kMono, 8, 6, i);
-      f.stamp_ns = 9'000'000'000 + (i < 3 ? static_cast<std::int64_t>(i) * 50'000'000 : -500'000'000);
+      f.stamp_ns =
+          9'000'000'000 + (i < 3 ? static_cast<std::int64_t>(i) * 50'000'000 : -500'000'000);
       f.index = i;
       EXPECT_TRUE(writer.Write(0, i, f));
     }

@@ -26,6 +26,13 @@ namespace {
 using std::chrono::milliseconds;
 using std::chrono::seconds;
 
+// Samples are written only while fresh (PublisherConfig::max_age): stamps of now.
+std::int64_t NowNs() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(
+             std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
 int TestDomain() { return static_cast<int>(getpid() % 200) + 1; }
 
 PublisherConfig TestConfig(const std::string& prefix) {
@@ -41,7 +48,7 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   std::uniform_int_distribution<int> cell(0, 511);
   pipeline::OccupancySnapshot s;
   s.sequence = seed * 7 + 3;
-  s.stamp_ns = 1'700'000'000'000'000'000LL + static_cast<std::int64_t>(seed);
+  s.stamp_ns = NowNs() + static_cast<std::int64_t>(seed);
   s.complete = (seed % 2) == 0;
   s.refined_cell_m = s.complete ? 0.03125 : 0.0625;
   // Not representable as floats: the sample carries the daemon's bounds exactly.
@@ -329,6 +336,71 @@ TEST(DdsPublisherTest, ReaderAskingForShorterDeadlineThanOfferedDoesNotMatch) {
   EXPECT_GE(incompatible.total_count, 1u);
   EXPECT_EQ(incompatible.last_policy_id,
             static_cast<dds_qos_policy_id_t>(DDS_DEADLINE_QOS_POLICY_ID));
+}
+
+// A snapshot older than max_age when its turn comes (the daemon was stopped,
+// SIGSTOP, and resumed) is not written: the reader gets the next fresh one.
+TEST(DdsPublisherTest, ASnapshotOlderThanTheMaximumAgeIsNotWritten) {
+  DdsPublisher publisher(TestConfig("stale"), 30.0);
+  TestSubscriber sub("stale", milliseconds(1000));
+  ReceivedOccupancy occ;
+  ReceivedStatus st;
+  ASSERT_TRUE(PublishUntilReceived(publisher, MakeSnapshot(1, 10, 0), sub, &occ, &st));
+  while (sub.TakeOccupancy(&occ) || sub.TakeStatus(&st)) {
+  }
+  pipeline::OccupancySnapshot old = MakeSnapshot(2, 10, 0);
+  old.stamp_ns -= 600'000'000;  // 0.6 s old.
+  for (int i = 0; i < 5; ++i) publisher.Publish(old);
+  std::this_thread::sleep_for(milliseconds(300));
+  EXPECT_FALSE(sub.TakeOccupancy(&occ));
+  EXPECT_FALSE(sub.TakeStatus(&st));
+  EXPECT_EQ(publisher.stale_dropped(), 5u);
+  const pipeline::OccupancySnapshot fresh = MakeSnapshot(3, 10, 0);
+  ASSERT_TRUE(PublishUntilReceived(publisher, fresh, sub, &occ, &st));
+  EXPECT_EQ(occ.header.sequence, fresh.sequence);
+  EXPECT_EQ(publisher.stale_dropped(), 5u);
+  EXPECT_EQ(publisher.write_failures(), 0u);
+}
+
+// A second publisher under the same prefix on the domain (another daemon
+// with a copied config) is noticed: every status sample says degraded while
+// it is there, and not once it is gone.
+TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
+  DdsPublisher publisher(TestConfig("twice"), 30.0);
+  EXPECT_EQ(publisher.CheckOtherPublishers(), 0);
+  TestSubscriber sub("twice", milliseconds(1000));
+  pipeline::OccupancySnapshot s = MakeSnapshot(2, 10, 0);
+  s.health.degraded = false;
+  ReceivedOccupancy occ;
+  ReceivedStatus st;
+  ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
+  EXPECT_FALSE(st.header.degraded);
+  {
+    DdsPublisher other(TestConfig("twice"), 30.0);
+    int others = 0;
+    for (int i = 0; i < 200 && others == 0; ++i) {
+      std::this_thread::sleep_for(milliseconds(25));
+      others = publisher.CheckOtherPublishers();
+    }
+    ASSERT_EQ(others, 1);
+    EXPECT_EQ(other.CheckOtherPublishers(), 1);
+    while (sub.TakeStatus(&st)) {
+    }
+    s = MakeSnapshot(2, 10, 0);
+    s.health.degraded = false;
+    ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
+    EXPECT_TRUE(st.header.degraded);
+  }
+  int others = 1;
+  for (int i = 0; i < 200 && others != 0; ++i) {
+    std::this_thread::sleep_for(milliseconds(25));
+    others = publisher.CheckOtherPublishers();
+  }
+  EXPECT_EQ(others, 0);
+  s = MakeSnapshot(2, 10, 0);
+  s.health.degraded = false;
+  ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
+  EXPECT_FALSE(st.header.degraded);
 }
 
 // Publisher mode for the `hullguard echo` test: 20 Hz for `seconds_to_run`.

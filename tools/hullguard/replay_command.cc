@@ -338,7 +338,8 @@ int RunReplay(const ReplayFlags& f) {
       std::int64_t newest = std::numeric_limits<std::int64_t>::min();
       for (const auto& reader : readers) {
         if (i < reader->frames()) {
-          newest = std::max(newest, reader->recording().frames[static_cast<std::size_t>(i)].time_ns);
+          newest =
+              std::max(newest, reader->recording().frames[static_cast<std::size_t>(i)].time_ns);
         }
       }
       for (std::size_t c = 0; c < readers.size(); ++c) {
