@@ -37,26 +37,33 @@ KnowledgeFilterResult FilterSmallComponents(const Octree& tree, double min_volum
     return i;
   };
   // Probe the 26 neighbour directions just outside a leaf, at the middle of
-  // the face, edge or corner. A touching leaf of the same or a coarser level
-  // always holds that probe (octree cells are aligned), and a finer touching
-  // leaf finds this one from its own side: occupied leaves probe to join
-  // occupied neighbours and to find occluded ones or the bounds' faces, and
-  // occluded leaves probe to find the occupied leaves they touch, so that a
-  // coarse occupied leaf beside finer occluded ones is anchored too.
-  const double eps = 1e-6 * (bounds.max - bounds.min).minCoeff() / (1 << tree.config().depth);
+  // the face, edge or corner: the finest cell there, by integer coordinates
+  // (exact wherever the bounds lie; a probe by world coordinates just outside
+  // the leaf falls back inside it where the coordinates are large). A
+  // touching leaf of the same or a coarser level always holds that probe
+  // (octree cells are aligned), and a finer touching leaf finds this one from
+  // its own side: occupied leaves probe to join occupied neighbours and to
+  // find occluded ones or the bounds' faces, and occluded leaves probe to
+  // find the occupied leaves they touch, so that a coarse occupied leaf
+  // beside finer occluded ones is anchored too.
+  const int depth = tree.config().depth;
+  const std::int64_t side = std::int64_t{1} << depth;
   auto for_each_neighbour = [&](const Cell& cell, auto&& visit) {
-    const common::Box3 box = CellBox(bounds, cell);
-    const Eigen::Vector3d mid = 0.5 * (box.min + box.max);
+    const std::int64_t size = std::int64_t{1} << (depth - cell.level);
+    const std::int64_t lo[3] = {cell.x * size, cell.y * size, cell.z * size};
     for (int d = 0; d < 27; ++d) {
-      const int dx = d % 3 - 1, dy = (d / 3) % 3 - 1, dz = d / 9 - 1;
-      if (dx == 0 && dy == 0 && dz == 0) continue;
-      Eigen::Vector3d p = mid;
-      const int dir[3] = {dx, dy, dz};
+      const int dir[3] = {d % 3 - 1, (d / 3) % 3 - 1, d / 9 - 1};
+      if (dir[0] == 0 && dir[1] == 0 && dir[2] == 0) continue;
+      std::int64_t q[3];
+      bool inside = true;
       for (int a = 0; a < 3; ++a) {
-        if (dir[a] < 0) p[a] = box.min[a] - eps;
-        if (dir[a] > 0) p[a] = box.max[a] + eps;
+        q[a] = dir[a] < 0 ? lo[a] - 1 : dir[a] > 0 ? lo[a] + size : lo[a] + size / 2;
+        inside = inside && q[a] >= 0 && q[a] < side;
       }
-      visit(tree.LeafAt(p));
+      visit(inside ? tree.LeafContaining({depth, static_cast<std::uint32_t>(q[0]),
+                                          static_cast<std::uint32_t>(q[1]),
+                                          static_cast<std::uint32_t>(q[2])})
+                   : std::nullopt);
     }
   };
   auto occupied_index = [&](const std::optional<std::pair<Cell, LeafState>>& leaf) {

@@ -1165,6 +1165,30 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
   }
 }
 
+std::optional<std::pair<Cell, LeafState>> Octree::LeafContaining(const Cell& target) const {
+  if (target.level < kRootLevel || target.level > 31) return std::nullopt;
+  const std::uint64_t side = std::uint64_t{1} << target.level;
+  if (target.x >= side || target.y >= side || target.z >= side) return std::nullopt;
+  const int shift = target.level - kRootLevel;
+  Cell cell{kRootLevel, target.x >> shift, target.y >> shift, target.z >> shift};
+  std::uint32_t index = cell.x + 8 * cell.y + 64 * cell.z;  // The root's node.
+  for (;;) {
+    const Node& n = nodes_.get()[index];
+    if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
+    if ((n.state != kInner && n.state != kPackedInner) || cell.level == target.level) {
+      return std::make_pair(cell, n.state != kInner && n.state != kPackedInner
+                                      ? static_cast<LeafState>(n.state)
+                                      : SummaryOf(index));
+    }
+    const int s = target.level - cell.level - 1;
+    const std::uint32_t i =
+        ((target.x >> s) & 1u) | (((target.y >> s) & 1u) << 1) | (((target.z >> s) & 1u) << 2);
+    if (n.state == kPackedInner) return std::make_pair(cell.Child(i), PackedChild(n.children, i));
+    cell = cell.Child(i);
+    index = n.children + i;
+  }
+}
+
 LeafState Octree::SummaryOf(std::uint32_t index) const {
   const Node& n = nodes_.get()[index];
   if ((n.flags & kPending) != 0) return LeafState::kOccupied;

@@ -208,6 +208,11 @@ class Octree {
   /// The leaf holding p_W (a pending node counts as an occupied leaf); nullopt
   /// outside the bounds.
   [[nodiscard]] std::optional<std::pair<Cell, LeafState>> LeafAt(const Eigen::Vector3d& p_W) const;
+  /// The leaf that holds cell `target` (any level from kRootLevel on; a leaf
+  /// at or above its level), by integer coordinates alone: exact however far
+  /// from the origin the bounds lie. nullopt when the coordinates are outside
+  /// the grid of the target's level.
+  [[nodiscard]] std::optional<std::pair<Cell, LeafState>> LeafContaining(const Cell& target) const;
 
   /// Calls fn(const Cell&, LeafState) for every leaf (pending nodes count as
   /// occupied leaves), roots in x-fastest order, children in index order.

@@ -86,16 +86,19 @@ struct Specks {
   std::unique_ptr<Octree> tree;
 };
 
-Specks CarveSpecks(const std::vector<Cell>& cells) {
+// `offset_W` moves the whole scene (bounds, specks and cameras).
+Specks CarveSpecks(const std::vector<Cell>& cells,
+                   const Eigen::Vector3d& offset_W = Eigen::Vector3d::Zero()) {
+  const common::Box3 bounds{kSpeckBounds.min + offset_W, kSpeckBounds.max + offset_W};
   std::vector<scene::Shape> specks;
   for (const Cell& c : cells) {
-    const common::Box3 box = CellBox(kSpeckBounds, c);
+    const common::Box3 box = CellBox(bounds, c);
     specks.push_back(scene::Sphere{0.5 * (box.min + box.max), 0.015});
   }
   // Two rings of 7 around the middle, 20 degrees above and below, and two
   // steep views from above and below, which tell apart the cells of one layer.
   std::vector<geometry::CameraModel> cams;
-  const Eigen::Vector3d centre(1, 1, 1);
+  const Eigen::Vector3d centre = Eigen::Vector3d(1, 1, 1) + offset_W;
   for (int i = 0; i < 16; ++i) {
     const double azimuth = i * 2 * M_PI / 7 + (i >= 7 ? M_PI / 7 : 0.0);
     const double elevation = i < 7 ? 0.35 : i < 14 ? -0.35 : (i == 14 ? 1.25 : -1.25);
@@ -111,8 +114,8 @@ Specks CarveSpecks(const std::vector<Cell>& cells) {
     out.trees[i].Build(masks[i].View(), 127);
     ptrs.push_back(&out.trees[i]);
   }
-  out.tree = std::make_unique<Octree>(OctreeConfig{kSpeckBounds, kSpeckDepth, 2},
-                                      testing::MakeViews(cams, {}));
+  out.tree =
+      std::make_unique<Octree>(OctreeConfig{bounds, kSpeckDepth, 2}, testing::MakeViews(cams, {}));
   out.tree->Update(ptrs);
   return out;
 }
@@ -154,6 +157,32 @@ TEST(KnowledgeFilterTest, CellsTouchingAtACornerOrAnEdgeFormOneComponent) {
     }
     // Below one cell's volume nothing is dropped, touching or not.
     EXPECT_EQ(FilterSmallComponents(*s.tree, 0.5 * cell_volume).dropped_components, 0);
+  }
+}
+
+// Far from the world origin (a site frame with large coordinates) a probe
+// placed by world coordinates just below a leaf's lower face rounds back onto
+// the face, inside the leaf: a blob at the lower faces of the bounds (someone
+// reaching in) read as in the open and was dropped. Neighbours are found by
+// integer cell coordinates, exact anywhere. The same scene at the origin is
+// the control.
+TEST(KnowledgeFilterTest, BlobsAtTheLowerFacesAreKeptFarFromTheOrigin) {
+  const Cell corner{kSpeckDepth, 0, 0, 0};
+  const Cell in_open{kSpeckDepth, 7, 7, 7};
+  const Cell beside{kSpeckDepth, 8, 8, 7};  // Touches in_open along an edge.
+  const double cell_volume = CellBox(kSpeckBounds, corner).Volume();
+  for (const double far : {0.0, 1e10}) {
+    SCOPED_TRACE(far);
+    const Specks s = CarveSpecks({corner, in_open, beside}, Eigen::Vector3d(far, -far, far));
+    std::vector<std::string> want = {Describe(corner), Describe(in_open), Describe(beside)};
+    std::sort(want.begin(), want.end());
+    ASSERT_EQ(OccupiedCells(*s.tree), want);
+    const KnowledgeFilterResult r = FilterSmallComponents(*s.tree, 2.5 * cell_volume);
+    EXPECT_EQ(r.components, 2);
+    EXPECT_EQ(r.dropped_components, 1);
+    EXPECT_FALSE(r.IsDropped(corner));
+    EXPECT_TRUE(r.IsDropped(in_open));
+    EXPECT_TRUE(r.IsDropped(beside));
   }
 }
 
