@@ -33,4 +33,8 @@ ProcessResult RunTool(const std::string& binary, const std::string& args) {
   return r;
 }
 
+ProcessResult RunToolInNetns(const std::string& binary, const std::string& args) {
+  return RunTool(HG_IN_NETNS_SH, binary + " " + args);
+}
+
 }  // namespace hg::testing
