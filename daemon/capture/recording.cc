@@ -342,6 +342,8 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   if (!in.read(reinterpret_cast<char*>(bytes->data()),
                static_cast<std::streamsize>(bytes->size())) ||
       bytes->empty() ||
+      !common::IsTrustedImageFormat(
+          std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size())) ||
       !common::IsCompleteImage(
           std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size()))) {
     return false;

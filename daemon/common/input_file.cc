@@ -1,9 +1,11 @@
 #include "common/input_file.h"
 
+#include <algorithm>
 #include <cctype>
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
+#include <initializer_list>
 #include <iterator>
 
 #include "common/config_error.h"
@@ -100,6 +102,21 @@ ImageHeaderFacts InspectImageHeader(std::string_view text) {
     if (ReadPnmHeader(bytes, n, &at, numbers)) facts.pnm_maxval = static_cast<int>(numbers[2]);
   }
   return facts;
+}
+
+bool IsTrustedImageFormat(std::string_view text) {
+  const auto* b = reinterpret_cast<const unsigned char*>(text.data());
+  const std::size_t n = text.size();
+  auto starts = [&](std::initializer_list<unsigned char> sig) {
+    return n >= sig.size() && std::equal(sig.begin(), sig.end(), b);
+  };
+  return starts({0x89, 'P', 'N', 'G'}) ||                           // PNG
+         (n >= 2 && b[0] == 'P' && b[1] >= '1' && b[1] <= '7') ||   // PNM, PAM
+         starts({'B', 'M'}) ||                                      // BMP
+         starts({'I', 'I', 42, 0}) || starts({'M', 'M', 0, 42}) ||  // TIFF
+         starts({0xFF, 0xD8}) ||                                    // JPEG
+         starts({0xFF, 0x4F, 0xFF, 0x51}) ||                        // JPEG 2000 stream
+         starts({0, 0, 0, 0x0C, 'j', 'P', ' ', ' '});               // JP2
 }
 
 bool IsCompleteImage(std::string_view text) {

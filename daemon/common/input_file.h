@@ -42,4 +42,12 @@ struct ImageHeaderFacts {
 };
 [[nodiscard]] ImageHeaderFacts InspectImageHeader(std::string_view bytes);
 
+/// Whether an encoded image is of a format whose decoder reads an 8-bit mask
+/// as written, by its signature: PNG, PNM/PAM, BMP, TIFF, JPEG, JPEG 2000.
+/// Others are refused rather than trusted: OpenCV's Sun raster decoder, for
+/// one, returns an 8-bit grey image as all zeros (a mask as all background).
+[[nodiscard]] bool IsTrustedImageFormat(std::string_view bytes);
+/// The formats IsTrustedImageFormat() takes, for messages.
+inline constexpr const char* kTrustedImageFormats = "PNG, PGM/PPM/PBM/PAM, BMP, TIFF or JPEG";
+
 }  // namespace hg::common

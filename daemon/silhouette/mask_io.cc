@@ -18,6 +18,10 @@ namespace {
 cv::Mat Decode(const std::string& path, int flags) {
   std::string bytes = common::ReadInputFile(path, "image", std::ios::binary);
   if (bytes.empty() || !common::IsCompleteImage(bytes)) return {};
+  if (!common::IsTrustedImageFormat(bytes)) {
+    throw common::ConfigError(path + ": not an image format read reliably (use " +
+                              common::kTrustedImageFormats + ")");
+  }
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data());
   try {
     return cv::imdecode(encoded, flags);

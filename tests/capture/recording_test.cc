@@ -537,6 +537,25 @@ TEST_F(RecordingTest, MaskFramesWithTransparentPixelsAreUnreadable) {
   EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
 }
 
+// A mask frame in Sun raster, which OpenCV decodes as all zeros when 8-bit
+// grey (the person read as background), is unreadable; the same frame as PNG
+// reads as written.
+TEST_F(RecordingTest, SunRasterFramesAreUnreadable) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 2, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a}\n";
+  const cv::Mat all(4, 6, CV_8UC1, cv::Scalar(255));
+  ASSERT_TRUE(cv::imwrite((dir_ / "masks" / "a" / "000000.ras").string(), all));
+  fs::rename(dir_ / "masks" / "a" / "000000.ras", dir_ / "masks" / "a" / "000000.png");
+  ASSERT_TRUE(cv::imwrite((dir_ / "masks" / "a" / "000001.png").string(), all));
+  ReplaySource source(ReadRecordingCamera(dir_.string(), "a"), SimClock{});
+  Frame f;
+  EXPECT_FALSE(source.ReadFrame(0, &f));
+  ASSERT_TRUE(source.ReadFrame(1, &f));
+  EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
+}
+
 // A frame file cut short (a disk full while recording, a copy interrupted) is
 // unreadable, whatever its format, and is refused before a decoder sees it:
 // libjpeg would fill the missing rows with grey and call it a frame, and libpng

@@ -323,6 +323,16 @@ TEST_F(CarveCliTest, PgmMaxvalIsScaledAndPngColourKeysAreRefused) {
   EXPECT_NE(keyed.err.find("keyed.png: mask has transparent pixels (a PNG transparency key"),
             std::string::npos)
       << keyed.err;
+
+  // OpenCV writes and decodes Sun raster, but decodes an 8-bit grey one as
+  // all zeros: the person read as background, free. Refused by its format.
+  ASSERT_TRUE(cv::imwrite(Path("plain.ras"), cv::Mat(48, 64, CV_8UC1, cv::Scalar(255))));
+  const ProcessResult ras = carve("plain.ras");
+  EXPECT_EQ(ras.code, 2) << ras.out;
+  EXPECT_EQ(ras.out, "");
+  EXPECT_NE(ras.err.find("plain.ras: not a mask format read reliably (use PNG, "),
+            std::string::npos)
+      << ras.err;
 }
 
 TEST_F(CarveCliTest, BytesAfterThePngEndAreIgnored) {

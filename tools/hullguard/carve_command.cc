@@ -83,6 +83,10 @@ class SilencedStderr {
 common::ImageU8 ReadMask(const std::string& path) {
   const std::string bytes = common::ReadInputFile(path, "mask", std::ios::binary);
   if (bytes.empty()) throw common::ConfigError(path + ": mask file is empty");
+  if (!common::IsTrustedImageFormat(bytes)) {
+    throw common::ConfigError(path + ": not a mask format read reliably (use " +
+                              common::kTrustedImageFormats + ")");
+  }
   cv::Mat m;
   if (common::IsCompleteImage(bytes)) {
     const SilencedStderr quiet;
