@@ -1,6 +1,7 @@
 #include "app/run.h"
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -74,8 +75,11 @@ std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
 
 /// The health line at info while all is well, at warning while degraded (so
 /// that `logging.level: warn` still shows what went wrong, once a second).
-void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line) {
-  log::Write(s.health.degraded ? log::Level::kWarn : log::Level::kInfo, line);
+// `foreign_publisher`: another publisher writes this daemon's topics (the
+// status samples say degraded while it does).
+void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line,
+               bool foreign_publisher) {
+  log::Write(s.health.degraded || foreign_publisher ? log::Level::kWarn : log::Level::kInfo, line);
 }
 
 const char* StateName(pipeline::CameraState s) {
@@ -93,7 +97,8 @@ const char* StateName(pipeline::CameraState s) {
 }
 
 // One line of health: the periodic log line and systemd's STATUS=.
-std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage* tracking) {
+std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage* tracking,
+                       bool foreign_publisher) {
   const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
   // An aborted update says how far it refined: cells of that size everywhere.
   char aborted[96] = "";
@@ -116,13 +121,15 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage
   std::snprintf(head, sizeof(head),
                 "cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms cycle %.1f ms "
                 "skew %.1f ms deadline misses %llu missed cycles %llu |",
-                static_cast<unsigned long long>(s.sequence), s.health.degraded ? "DEGRADED" : "ok",
-                aborted, cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
+                static_cast<unsigned long long>(s.sequence),
+                s.health.degraded || foreign_publisher ? "DEGRADED" : "ok", aborted,
+                cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
                 cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occluded)),
                 s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
                 static_cast<unsigned long long>(s.health.deadline_misses),
                 static_cast<unsigned long long>(s.health.missed_cycles));
   std::string line = head;
+  if (foreign_publisher) line.insert(line.size() - 2, " another publisher on the topics");
   if (s.health.phase_lock && !s.health.phase_locked) {
     line.insert(line.size() - 2, " phase unlocked");  // Before " |".
   }
@@ -220,6 +227,9 @@ int RunPipeline(const Config& config, double duration_s) {
   // the fusion cycle never waits on the network.
   std::unique_ptr<SnapshotStage> publish_stage;
   std::function<void()> check_publisher = [] {};
+  // Another publisher writes this daemon's topics: the health line, STATUS=
+  // and the black box's trigger say degraded, as the status samples do.
+  std::atomic<bool> foreign_publisher{false};
 #ifdef HG_WITH_DDS
   publish::DdsPublisher publisher(
       {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled, config.tracking.enabled},
@@ -252,6 +262,7 @@ int RunPipeline(const Config& config, double duration_s) {
       log::Info("the other publisher of {} is gone", publisher.status_topic());
     }
     other_publishers = others;
+    foreign_publisher.store(others > 0);
     const std::uint64_t stale = publisher.stale_dropped();
     if (stale != stale_seen) {
       log::Warn(
@@ -332,7 +343,7 @@ int RunPipeline(const Config& config, double duration_s) {
     if (black_box && config.blackbox.on_degraded) {
       if (const auto s = pipeline.Latest(); s && s->sequence != blackbox_seen) {
         blackbox_seen = s->sequence;
-        degraded_trigger.Observe(s->health.degraded);
+        degraded_trigger.Observe(s->health.degraded || foreign_publisher.load());
       }
       if (degraded_trigger.ShouldDump(now, black_box->busy()) &&
           black_box->RequestDump("degraded")) {
@@ -350,7 +361,7 @@ int RunPipeline(const Config& config, double duration_s) {
                                                  return h.state == pipeline::CameraState::kStarting;
                                                });
         if (cameras_open || now - start >= kReadyWait) {
-          const std::string line = HealthLine(*s, tracking.get());
+          const std::string line = HealthLine(*s, tracking.get(), foreign_publisher.load());
           if (!cameras_open) log::Warn("ready without every camera: {}", line);
           notifier.Ready();
           watchdog.SetStatus(line);
@@ -361,8 +372,8 @@ int RunPipeline(const Config& config, double duration_s) {
     if (now >= next_report) {
       next_report += std::chrono::seconds(1);
       if (const auto s = pipeline.Latest()) {
-        const std::string line = HealthLine(*s, tracking.get());
-        LogHealth(*s, line);
+        const std::string line = HealthLine(*s, tracking.get(), foreign_publisher.load());
+        LogHealth(*s, line, foreign_publisher.load());
         watchdog.SetStatus(line);
       }
     }
@@ -373,7 +384,8 @@ int RunPipeline(const Config& config, double duration_s) {
   if (publish_stage) publish_stage->Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
-    LogHealth(*s, HealthLine(*s, tracking.get()));
+    LogHealth(*s, HealthLine(*s, tracking.get(), foreign_publisher.load()),
+              foreign_publisher.load());
   }
   log::Info("stopped");
   return 0;

@@ -233,7 +233,8 @@ void DdsPublisher::PublishTracks(std::uint64_t sequence, std::int64_t stamp_ns, 
   hullguard_Tracks& out = s.tracks;
   out.sequence = sequence;
   out.stamp_ns = stamp_ns;
-  out.degraded = degraded;
+  // As the cycle's status sample says (Publish()).
+  out.degraded = degraded || other_publishers_.load(std::memory_order_relaxed);
   Grow(out.tracked, s.storage, tracks.size());
   for (std::size_t i = 0; i < tracks.size(); ++i) {
     const tracking::Track& t = tracks[i];

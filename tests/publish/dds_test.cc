@@ -39,6 +39,10 @@ PublisherConfig TestConfig(const std::string& prefix) {
   PublisherConfig config;
   config.domain_id = TestDomain();
   config.topic_prefix = prefix;
+  // Tests republish one snapshot until discovery is done, which may take
+  // longer than the daemon's age limit on a loaded machine: no limit here
+  // (the test of the limit sets it).
+  config.max_age = std::chrono::nanoseconds(0);
   return config;
 }
 
@@ -341,7 +345,9 @@ TEST(DdsPublisherTest, ReaderAskingForShorterDeadlineThanOfferedDoesNotMatch) {
 // A snapshot older than max_age when its turn comes (the daemon was stopped,
 // SIGSTOP, and resumed) is not written: the reader gets the next fresh one.
 TEST(DdsPublisherTest, ASnapshotOlderThanTheMaximumAgeIsNotWritten) {
-  DdsPublisher publisher(TestConfig("stale"), 30.0);
+  PublisherConfig config = TestConfig("stale");
+  config.max_age = std::chrono::milliseconds(500);
+  DdsPublisher publisher(config, 30.0);
   TestSubscriber sub("stale", milliseconds(1000));
   ReceivedOccupancy occ;
   ReceivedStatus st;

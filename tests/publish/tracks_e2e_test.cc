@@ -127,6 +127,8 @@ TEST(TracksPublisherTest, PublishedTracksArriveUnchanged) {
   publish::PublisherConfig config;
   config.domain_id = static_cast<int>(getpid() % 200) + 1;
   config.topic_prefix = "tracks_unit";
+  // One stamp is republished until discovery is done: no age limit.
+  config.max_age = std::chrono::nanoseconds(0);
   publish::DdsPublisher publisher(config, 30.0);
   EXPECT_EQ(publisher.tracks_topic(), "tracks_unit/tracks");
   Listener listener(config.domain_id, config.topic_prefix);
@@ -186,6 +188,24 @@ TEST(TracksPublisherTest, PublishedTracksArriveUnchanged) {
   ASSERT_GT(listener.tracks_samples.size(), before);
   EXPECT_EQ(listener.tracks_samples.back().sequence, 42u);
   EXPECT_TRUE(listener.tracks_samples.back().tracks.empty());
+
+  // While another publisher writes the same topics (a second daemon with a
+  // copied config), every tracks sample says degraded, as the status does.
+  publish::DdsPublisher other(config, 30.0);
+  int others = 0;
+  for (int i = 0; i < 200 && others == 0; ++i) {
+    std::this_thread::sleep_for(25ms);
+    others = publisher.CheckOtherPublishers();
+  }
+  ASSERT_EQ(others, 1);
+  const std::size_t with_other = listener.tracks_samples.size();
+  for (int i = 0; i < 100 && listener.tracks_samples.size() == with_other; ++i) {
+    publisher.PublishTracks(43, NowNs(), false, {});
+    listener.Collect(25ms, with_other + 1);
+  }
+  ASSERT_GT(listener.tracks_samples.size(), with_other);
+  EXPECT_EQ(listener.tracks_samples.back().sequence, 43u);
+  EXPECT_TRUE(listener.tracks_samples.back().degraded);
 }
 
 // `hullguard echo --topic tracks` prints the tracks, and its --snapshot
