@@ -10,6 +10,7 @@
 #endif
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 
 #include "geometry/camera.h"
 
@@ -38,10 +39,42 @@ struct Footprint {
 
 /// Precomputed pinhole projection P = K [R | t] of one camera. K(2, 2) must be 1,
 /// so that row 2 of P gives the camera depth. Value type.
+///
+/// Points are projected relative to the camera centre o:
+/// P (x, 1) = M (x - o) + c, with M = P's left 3x3 and c = M o + P's last
+/// column (nearly zero), computed once without rounding error. Every term is
+/// then of the order of the focal length times the point's distance from the
+/// camera, so the rounding error of u and v stays near 1e-16 times the focal
+/// length whatever the coordinates. Projected as M x + P's last column, terms
+/// of the size of the focal length times the coordinates (site frames place
+/// cells a million metres from the origin) cancel, and the error exceeded
+/// kFootprintSlackPx: a corner on the wrong side of a pixel border, a box
+/// freed by a pixel it touches.
 struct BoxProjector {
   Eigen::Matrix<double, 3, 4> P;
+  Eigen::Vector3d origin = Eigen::Vector3d::Zero();  ///< o: the camera centre (world, m).
+  double offset[3] = {0.0, 0.0, 0.0};                ///< c = M o + P's last column.
 
-  explicit BoxProjector(const Eigen::Matrix<double, 3, 4>& projection) : P(projection) {}
+  explicit BoxProjector(const Eigen::Matrix<double, 3, 4>& projection) : P(projection) {
+    const Eigen::Vector3d o = -P.leftCols<3>().inverse() * P.col(3);
+    if (o.allFinite()) origin = o;
+    for (int r = 0; r < 3; ++r) offset[r] = ExactRowAt(r, origin);
+  }
+
+  /// Row r of P at (x, 1), rounded once (double-double accumulation of exact
+  /// products).
+  [[nodiscard]] double ExactRowAt(int r, const Eigen::Vector3d& x) const {
+    double hi = P(r, 3), lo = 0.0;
+    for (int a = 0; a < 3; ++a) {
+      const double p = P(r, a) * x[a];
+      const double p_err = std::fma(P(r, a), x[a], -p);
+      const double s = hi + p;
+      const double b = s - hi;
+      lo += (hi - (s - b)) + (p - b) + p_err;
+      hi = s;
+    }
+    return hi + lo;
+  }
 
   /// Projects the grid of points (xs[i], ys[j], zs[k]), i, j, k < N, into
   /// image coordinates (pixels; meaningful where z > 0), u at uv[2 n] and v at
@@ -52,12 +85,18 @@ struct BoxProjector {
   template <int N>
   void ProjectGrid(const double (&xs)[N], const double (&ys)[N], const double (&zs)[N], double* uv,
                    double* z) const {
+    double dx[N], dy[N], dz[N];  // Relative to the camera centre.
+    for (int i = 0; i < N; ++i) {
+      dx[i] = xs[i] - origin.x();
+      dy[i] = ys[i] - origin.y();
+      dz[i] = zs[i] - origin.z();
+    }
     double ax[3][N], ay[3][N], az[3][N];
     for (int r = 0; r < 3; ++r) {
       for (int i = 0; i < N; ++i) {
-        ax[r][i] = P(r, 0) * xs[i];
-        ay[r][i] = P(r, 1) * ys[i];
-        az[r][i] = P(r, 2) * zs[i] + P(r, 3);
+        ax[r][i] = P(r, 0) * dx[i];
+        ay[r][i] = P(r, 1) * dy[i];
+        az[r][i] = P(r, 2) * dz[i] + offset[r];
       }
     }
     for (int k = 0; k < N; ++k) {

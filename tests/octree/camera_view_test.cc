@@ -150,6 +150,88 @@ TEST(BoxProjectorTest, FootprintEqualsIndependentCornerProjection) {
   EXPECT_GT(straddling, 100);
 }
 
+// The pixel holding the exact projection of row r of P at p_W (pixel u
+// covers [u - 0.5, u + 0.5)): products and sums of doubles in 113-bit
+// arithmetic, exact to far below a pixel at any coordinates here.
+long long ExactPixel(const Eigen::Matrix<double, 3, 4>& P, int r, const Eigen::Vector3d& p_W) {
+  __float128 num = P(r, 3), den = P(2, 3);
+  for (int a = 0; a < 3; ++a) {
+    num += static_cast<__float128>(P(r, a)) * p_W[a];
+    den += static_cast<__float128>(P(2, a)) * p_W[a];
+  }
+  const __float128 x = num / den + static_cast<__float128>(0.5);
+  long long pixel = static_cast<long long>(x);  // Towards zero.
+  if (static_cast<__float128>(pixel) > x) --pixel;
+  return pixel;
+}
+
+// A footprint holds the pixel of every corner's exact projection, also where
+// the cell lies a million metres from the origin (a site frame) with long
+// focal lengths and boxes close to the lens: projected as P (x, 1), terms of
+// 1e11 cancelled and the rounding error (1e-4 px) exceeded the slack, so a box
+// was freed by a pixel it touches. The first case is such a box, found by an
+// audit: its lower corner projects 3.7e-5 px left of the border between
+// pixels 755 and 756.
+TEST(BoxProjectorTest, FootprintHoldsTheExactCornerPixelsFarFromTheOrigin) {
+  int checked = 0;
+  auto check = [&](const Eigen::Matrix<double, 3, 4>& P, const Eigen::Vector3d& lo,
+                   const Eigen::Vector3d& hi, const char* what) {
+    const geometry::Footprint fp = geometry::BoxProjector(P).Project(lo, hi);
+    if (fp.side != geometry::Footprint::Side::kInFront) return;
+    for (int i = 0; i < 8; ++i) {
+      const Eigen::Vector3d p_W((i & 1) ? hi.x() : lo.x(), (i & 2) ? hi.y() : lo.y(),
+                                (i & 4) ? hi.z() : lo.z());
+      const long long u = ExactPixel(P, 0, p_W), v = ExactPixel(P, 1, p_W);
+      ++checked;
+      ASSERT_TRUE(fp.rect.u0 <= u && u <= fp.rect.u1 && fp.rect.v0 <= v && v <= fp.rect.v1)
+          << what << ": corner " << i << " in pixel (" << u << ", " << v << "), footprint ["
+          << fp.rect.u0 << ", " << fp.rect.u1 << "] x [" << fp.rect.v0 << ", " << fp.rect.v1
+          << "], box [" << lo.transpose() << "] .. [" << hi.transpose() << "]";
+    }
+  };
+  {
+    Eigen::Matrix<double, 3, 4> P;
+    P << 1e5, 0, 2000, 2000 * 0.0 - 1e5 * 999999.0, 0, 1e5, 1100, 0, 0, 0, 1, 0;
+    const common::Box3 bounds{{999998.9991, -0.0005, 0.05}, {999998.99999, 0.0005, 0.06}};
+    const common::Box3 cell = CellBox(bounds, {10, 227, 512, 662});
+    check(P, cell.min, cell.max, "the audit's cell");
+  }
+  // Random cameras a million metres out, focal lengths 1e3 .. 1e5 px, boxes
+  // of 1 um .. 10 cm at 5 cm .. 5 m in front, half of them with a corner on
+  // a pixel border.
+  std::mt19937_64 rng(77);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (int camera = 0; camera < 200; ++camera) {
+    const double f = std::pow(10.0, 3.0 + 2.0 * u01(rng));
+    Eigen::Matrix3d K;
+    K << f, 0, 1000 * u01(rng), 0, f * (0.9 + 0.2 * u01(rng)), 1000 * u01(rng), 0, 0, 1;
+    const Eigen::Matrix3d R = Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng))
+                                  .normalized()
+                                  .matrix();
+    const Eigen::Vector3d centre_W(1e6 * (0.5 + 0.5 * u01(rng)), -1e6 * u01(rng), 100 * u01(rng));
+    Eigen::Matrix<double, 3, 4> Rt;
+    Rt.leftCols<3>() = R;
+    Rt.col(3) = -R * centre_W;
+    const Eigen::Matrix<double, 3, 4> P = K * Rt;
+    for (int trial = 0; trial < 50; ++trial) {
+      const double depth = std::pow(10.0, -1.3 + 2.0 * u01(rng));
+      const Eigen::Vector3d size =
+          Eigen::Vector3d(u01(rng), u01(rng), u01(rng)).unaryExpr([](double t) {
+            return std::pow(10.0, -6.0 + 5.0 * t);
+          });
+      double u = 1000 * u01(rng), v = 1000 * u01(rng);
+      if (trial % 2 == 1) u = std::floor(u) + 0.5;
+      const Eigen::Vector3d p_C = depth * (K.inverse() * Eigen::Vector3d(u, v, 1.0));
+      const Eigen::Vector3d corner = R.transpose() * p_C + centre_W;
+      const Eigen::Vector3d lo = u01(rng) < 0.5 ? corner : Eigen::Vector3d(corner - size);
+      check(P, lo, lo + size, "random");
+      if (HasFatalFailure()) return;
+    }
+  }
+  EXPECT_GT(checked, 50000);
+}
+
 TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxesAndCertifiesFreeAgrees) {
   int seen_clear = 0, seen_behind = 0, seen_partial = 0, seen_free = 0;
   for (int seed = 0; seed < testing::SoakSeeds(8); ++seed) {
