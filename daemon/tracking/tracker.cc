@@ -479,9 +479,18 @@ void Tracker::Births() {
       }
       // Several people in one component (standing one behind the other, their
       // hulls joined below): one track each, from the evidence nearest each
-      // one's upper body.
-      const int heads = grounded && tall && z_max >= z_tall ? FindHeads(z_tall) : 0;
-      if (heads >= 2) SplitEvidence(heads);
+      // one's upper body. A piece counts as a person only when its share would
+      // start a person's track on its own. Something held out at arm's length
+      // is a piece of its own (an arm is too thin to hold interior evidence),
+      // and the component stands on the holder's legs, but the thing itself
+      // floats: its share goes to the people around it, and when fewer than
+      // two pieces are people, the component is one person's.
+      int heads = grounded && tall && z_max >= z_tall ? FindHeads(z_tall) : 0;
+      if (heads >= 2) {
+        SplitEvidence(heads);
+        heads = KeepStandingHeads(heads);
+        if (heads >= 2) SplitEvidence(heads);
+      }
       for (const std::uint32_t i : queue_) marks_[i] &= static_cast<std::uint8_t>(~kEvidenceMark);
       if (grounded) {
         const std::uint64_t before = stats_.births + stats_.object_births + stats_.reacquisitions;
@@ -700,6 +709,7 @@ void Tracker::SplitEvidence(int heads) {
     head.evidence = 0;
     head.sum.setZero();
     head.sum_sq.setZero();
+    head.grounded = false;
   }
   // Each evidence voxel goes to the head nearest in the floor plan.
   for (const std::uint32_t i : queue_) {
@@ -720,7 +730,23 @@ void Tracker::SplitEvidence(int heads) {
     ++nearest->evidence;
     nearest->sum += p;
     nearest->sum_sq += p.cwiseProduct(p);
+    nearest->grounded = nearest->grounded || Grounded(i);
   }
+}
+
+int Tracker::KeepStandingHeads(int heads) {
+  const double vv = map_.grid().voxel_volume_m3();
+  int kept = 0;
+  for (int h = 0; h < heads; ++h) {
+    const Head& head = heads_[static_cast<std::size_t>(h)];
+    // What a component needs to start a track, asked of the head's share:
+    // standing on something and a person's volume. Its height it has: a
+    // layer at birth_min_height_m or higher holds a head's cross-section.
+    if (!head.grounded || head.evidence * vv < options_.birth_min_volume_m3) continue;
+    heads_[static_cast<std::size_t>(kept++)] = head;
+  }
+  heads_.resize(static_cast<std::size_t>(kept));
+  return kept;
 }
 
 void Tracker::StartOrReacquire(int unexplained, const Vector3d& sum, const Vector3d& sum_sq,

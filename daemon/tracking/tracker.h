@@ -214,7 +214,11 @@ struct TrackerStats {
 ///    voxel). A component whose evidence above birth_min_height_m falls into
 ///    several pieces in the floor plan, each with a head's cross-section
 ///    (people standing one behind the other, their hulls joined lower down),
-///    starts a track per piece, each on the evidence nearest it.
+///    starts a track per piece whose share, the evidence nearest it, would
+///    start a track on its own (standing on something, at least
+///    birth_min_volume_m3); the shares of the other pieces (something held
+///    out at arm's length) go to the nearest such piece, and with fewer than
+///    two such pieces the component starts one track.
 /// After warm-up a cycle allocates nothing. Memory beyond the VoxelMap: 5
 /// bytes per voxel (component search) and the filters of max_tracks tracks.
 /// Single-thread.
@@ -338,8 +342,14 @@ class Tracker {
   /// most max_tracks of them, the largest. Fills heads_; returns their number.
   int FindHeads(int z_tall);
   /// Gives every evidence voxel of the component to the nearest of the first
-  /// `heads` heads_ in the floor plan (their evidence, sum and sum of squares).
+  /// `heads` heads_ in the floor plan (their evidence, sum and sum of squares)
+  /// and notes whether some voxel of each share stands on something
+  /// (Grounded()).
   void SplitEvidence(int heads);
+  /// Keeps of the first `heads` heads_, split by SplitEvidence(), those whose
+  /// share would start a track as a component of its own (grounded, at least
+  /// birth_min_volume_m3); returns their number.
+  int KeepStandingHeads(int heads);
   struct Head {
     std::uint16_t label = 0;  // In column_labels_ while FindHeads() runs.
     int columns = 0;
@@ -348,6 +358,7 @@ class Tracker {
     int evidence = 0;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     Eigen::Vector3d sum_sq = Eigen::Vector3d::Zero();
+    bool grounded = false;
   };
   static constexpr std::uint16_t kUnlabelledColumn = 0xFFFF;
   std::vector<std::uint16_t> column_labels_;  // Per floor column; 0 between searches.
