@@ -377,12 +377,20 @@ TEST_F(ReplayLoopTest, CamerasSharingALoopPeriodStayInStep) {
     }
     EXPECT_GT(looped, 0) << "700 ms reach the second repetition (from 400 ms)";
   }
-  // The camera's own length, never shorter: a shorter period is not taken.
-  ReplaySource own(
-      a, clock,
-      ReplayOptions{
-          .pacing = ReplayPacing::kFast, .loop = true, .loop_start_s = 0.1, .loop_period_ns = 1});
-  (void)own;
+  // The camera's own length, never shorter: a shorter period is not taken
+  // (its repetitions would overlap, capture times stepping back).
+  ReplaySource own(a, clock, ReplayOptions{.loop = true, .loop_start_s = 0.1, .loop_period_ns = 1});
+  Frame f;
+  int repeated = 0;
+  for (const auto until = std::chrono::steady_clock::now() + 1000ms;
+       std::chrono::steady_clock::now() < until && repeated < 3;) {
+    if (!own.Next(&f, 50ms) || f.index < 5) continue;
+    EXPECT_EQ(f.stamp_ns, clock.epoch_ns + static_cast<std::int64_t>(f.index % 5) * 50'000'000 +
+                              static_cast<std::int64_t>(f.index / 5) * LoopLengthNs(a, 0.1))
+        << "frame " << f.index;
+    ++repeated;
+  }
+  EXPECT_EQ(repeated, 3);
 }
 
 // Capture times that step back (a host clock set back while recording) can
