@@ -1,5 +1,6 @@
 #include "app/config.h"
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -15,6 +16,7 @@
 #include "app/config_doc.h"
 #include "app/pipeline_setup.h"
 #include "app/tracking_stage.h"
+#include "capture/recording.h"
 #include "common/config_error.h"
 #include "common/version.h"
 #include "geometry/camera_yaml.h"
@@ -966,6 +968,66 @@ TEST(ConfigTest, CamerasAreMadeOnlyOnceEverythingHasLoaded) {
   // Made in config order, the V4L2 source would fail first, as a device
   // that cannot be opened (std::runtime_error), not a ConfigError.
   EXPECT_THROW((void)MakeCameras(config, capture::SimClock::Now()), common::ConfigError);
+}
+
+// Looping replay cameras share one loop period, the longest of theirs: a
+// camera whose recording lacks its last frame (5 frames against 4) plays
+// each repetition at the same times as the other, not one frame interval
+// earlier per repetition (the drift put a person's silhouettes apart).
+TEST(ConfigTest, LoopingReplayCamerasShareTheLongestLoopPeriod) {
+  const TempDir dir;
+  std::vector<geometry::CameraModel> models(2);
+  for (int c = 0; c < 2; ++c) {
+    models[c].name = c == 0 ? "a" : "b";
+    models[c].width = 8;
+    models[c].height = 6;
+    models[c].K << 10, 0, 3.5, 0, 10, 2.5, 0, 0, 1;
+    models[c].t_CW = Eigen::Vector3d(0, 0, 3);
+  }
+  {
+    capture::RecordingWriter writer(dir.str(), models, "test");
+    for (std::uint64_t i = 0; i < 5; ++i) {
+      for (int c = 0; c < 2; ++c) {
+        if (c == 1 && i == 4) continue;  // b's last frame is missing.
+        capture::Frame f;
+        f.kind = capture::FrameKind::kMono;
+        f.grey = common::ImageU8(8, 6, 0);
+        f.stamp_ns = 9'000'000'000 + static_cast<std::int64_t>(i) * 50'000'000;
+        f.index = i;
+        ASSERT_TRUE(writer.Write(c, i, f));
+      }
+    }
+  }
+  Config config;
+  config.source_file = "c.yaml";
+  for (int c = 0; c < 2; ++c) {
+    CameraConfig camera;
+    camera.model = models[c];
+    ReplaySourceConfig replay;
+    replay.directory = dir.str();
+    replay.camera = models[c].name;
+    replay.loop = true;
+    replay.loop_start_s = 0.1;
+    camera.source = replay;
+    config.cameras.push_back(camera);
+  }
+  const capture::SimClock clock = capture::SimClock::Now();
+  std::vector<pipeline::PipelineCamera> cameras = MakeCameras(config, clock);
+  ASSERT_EQ(cameras.size(), 2u);
+  // Camera b, frames of its second and third repetitions: the recording's
+  // time plus whole periods of a's length (150 ms from frame 2 to a's 5th
+  // frame and one interval on), not b's own (100 ms).
+  int checked = 0;
+  capture::Frame f;
+  for (const auto until = std::chrono::steady_clock::now() + std::chrono::milliseconds(900);
+       std::chrono::steady_clock::now() < until;) {
+    if (!cameras[1].source->Next(&f, std::chrono::milliseconds(50)) || f.index < 4) continue;
+    EXPECT_EQ(f.stamp_ns, clock.epoch_ns + static_cast<std::int64_t>(f.index % 4) * 50'000'000 +
+                              static_cast<std::int64_t>(f.index / 4) * 150'000'000)
+        << "frame " << f.index;
+    ++checked;
+  }
+  EXPECT_GE(checked, 3);
 }
 
 // A command line that cannot be parsed, like a config that cannot be read,
