@@ -125,11 +125,14 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
       dds::Writer(participant_, occupancy_topic_entity_, OccupancyWriterQos(rate_hz).get());
   status_writer_ = dds::Writer(participant_, status_topic_entity_, StatusWriterQos(rate_hz).get());
   {
-    // Reliable (matches the status writers), keeps one sample, which it
-    // never reads; no deadline, so it matches any writer's.
+    // Best effort, volatile, no deadline: requests nothing a writer could
+    // fail to offer, so it matches every writer of the topic, reliable or
+    // not. Its own participant's writer is ignored, so that the daemon's own
+    // status samples are not delivered to it every cycle (it never reads).
     dds::Qos qos;
     SetCommon(qos);
-    dds_qset_reliability(qos.get(), DDS_RELIABILITY_RELIABLE, DDS_MSECS(100));
+    dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+    dds_qset_ignorelocal(qos.get(), DDS_IGNORELOCAL_PARTICIPANT);
     status_watch_ = dds::Reader(participant_, status_topic_entity_, qos.get());
   }
   if (config.tracks) {

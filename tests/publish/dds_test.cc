@@ -407,6 +407,22 @@ TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
   s.health.degraded = false;
   ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
   EXPECT_FALSE(st.header.degraded);
+
+  // A best-effort writer of the status topic (another tool, not a daemon)
+  // counts too.
+  {
+    dds::Participant participant(static_cast<dds_domainid_t>(TestDomain()));
+    dds::Topic topic(participant, &hullguard_Status_desc, StatusTopicName("twice"));
+    dds::Qos qos;
+    dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+    dds::Writer writer(participant, topic, qos.get());
+    others = 0;
+    for (int i = 0; i < 200 && others == 0; ++i) {
+      std::this_thread::sleep_for(milliseconds(25));
+      others = publisher.CheckOtherPublishers();
+    }
+    EXPECT_EQ(others, 1);
+  }
 }
 
 // Publisher mode for the `hullguard echo` test: 20 Hz for `seconds_to_run`.
