@@ -20,6 +20,8 @@ const char* ToString(CameraFault fault) {
       return "moved";
     case CameraFault::kUnlearned:
       return "unlearned";
+    case CameraFault::kBlocked:
+      return "blocked";
   }
   return "?";
 }

@@ -21,9 +21,15 @@ enum class CameraFault : std::uint8_t {
   /// No background to tell people from (none kept, and learning at start is
   /// off: background.learn_at_start): set by the pipeline, not the monitor.
   kUnlearned = 5,
+  /// An obstacle mesh reaches within 1 mm in front of the camera centre
+  /// (the camera modelled inside a housing or a robot): every ray is taken
+  /// as blocked, so the camera certifies nothing. Set by the pipeline at
+  /// start, for good: a config to mend, not a state that passes.
+  kBlocked = 6,
 };
 
-/// Stable lower-case name ("none", "frozen", "black", "saturated", "moved", "unlearned").
+/// Stable lower-case name ("none", "frozen", "black", "saturated", "moved", "unlearned",
+/// "blocked").
 [[nodiscard]] const char* ToString(CameraFault fault);
 
 struct CameraHealthOptions {

@@ -50,9 +50,13 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
     }
     views.emplace_back(c.model.Pinhole(), obstacles);
     if (views.back().depth_map().blocked) {
-      log::Warn(
+      // It could still show foreground (never free anything): seeing nothing
+      // is as conservative, and the status says what is wrong.
+      runtime->blocked = true;
+      log::Error(
           "{}: an obstacle reaches within 1 mm in front of the camera centre (inside the lens): "
-          "the camera is taken as blocked and certifies no space free",
+          "the camera is taken as blocked, sees nothing and is reported failed (blocked); "
+          "leave the camera and its mount out of the obstacle meshes",
           c.model.name);
     }
     if (heartbeats_ != nullptr) {
@@ -403,7 +407,8 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
       c.seen = true;
     }
     const double age_ms = c.seen ? (now_ns - c.last_stamp_ns) * 1e-6 : 0.0;
-    const std::uint8_t fault = c.fault.load(std::memory_order_relaxed);
+    const std::uint8_t fault = c.blocked ? static_cast<std::uint8_t>(capture::CameraFault::kBlocked)
+                                         : c.fault.load(std::memory_order_relaxed);
     const bool received_lately =
         !received_by || *received_by - c.last_ready <= std::chrono::milliseconds(c.timeout_ms);
     const bool live = c.seen && age_ms <= c.timeout_ms && received_lately && fault == 0;

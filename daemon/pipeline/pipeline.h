@@ -210,6 +210,9 @@ class Pipeline {
     std::atomic<std::uint64_t> frames{0};
     std::atomic<std::uint64_t> corrupt{0};  // Frames of the wrong size.
     std::atomic<std::uint8_t> fault{0};     // capture::CameraFault.
+    /// An obstacle covers the lens (capture::CameraFault::kBlocked): failed,
+    /// the status degraded, for as long as the daemon runs.
+    bool blocked = false;
     bool unlearned = false;  // No background kept, and learning not allowed (kKeptOnly).
     std::atomic<bool> has_model{false};  // `background` exists (HasBackgroundModel()).
     // BackgroundSaved(): 0 not yet, 1 saved, 2 failed to save.

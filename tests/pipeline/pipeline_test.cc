@@ -18,6 +18,7 @@
 #include <Eigen/Geometry>
 #include "scene/demo_cell.h"
 
+#include "capture/camera_health.h"
 #include "capture/replay_source.h"
 #include "capture/sim_source.h"
 #include "common/config_error.h"
@@ -164,7 +165,8 @@ struct Rig {
   /// CLOCK_REALTIME (as after the host clock was stepped).
   explicit Rig(std::shared_ptr<sim::Scene> s = StandingScene(), double max_speed_mps = 2.0,
                int silhouette_workers = 0, double knowledge_filter_m3 = 0.0,
-               std::chrono::nanoseconds stamp_shift = {}, bool stamp_at_median = false)
+               std::chrono::nanoseconds stamp_shift = {}, bool stamp_at_median = false,
+               std::vector<geometry::TriangleMesh> obstacles = {})
       : scene(std::move(s)) {
     clock.epoch_ns += stamp_shift.count();
     PipelineOptions options;
@@ -183,8 +185,7 @@ struct Rig {
       sources.push_back(source.get());
       cameras.push_back({scene->cameras[c].model, std::move(source), 150});
     }
-    pipeline = std::make_unique<Pipeline>(options, std::move(cameras),
-                                          std::vector<geometry::TriangleMesh>{}, nullptr);
+    pipeline = std::make_unique<Pipeline>(options, std::move(cameras), obstacles, nullptr);
     pipeline->Start();
   }
 
@@ -272,6 +273,30 @@ TEST(PipelineTest, SilentCamerasTurnStaleWhateverTheStampsSay) {
   // Timeout 150 ms plus a cycle or two, with room for a loaded machine.
   EXPECT_LT(std::chrono::steady_clock::now() - paused, 2s);
   EXPECT_EQ(rig.PointsReportedFree(*stale), 0);
+  rig.pipeline->Stop();
+}
+
+// A camera whose centre lies inside an obstacle mesh (its housing or mount
+// modelled into the meshes) is blocked: it sees nothing, for as long as the
+// pipeline runs, and says so (failed, fault blocked, the status degraded)
+// instead of reporting ok while it certifies nothing.
+TEST(PipelineTest, ACameraInsideAnObstacleIsFailedBlocked) {
+  std::shared_ptr<sim::Scene> scene = StandingScene();
+  const geometry::CameraModel& model = scene->cameras[0].model;
+  const Eigen::Vector3d centre_W = -model.R_CW.transpose() * model.t_CW;
+  const Eigen::Vector3d half(0.0005, 0.0005, 0.0005);
+  Rig rig(scene, 2.0, 0, 0.0, {}, false,
+          {geometry::TriangleMesh::Box(centre_W - half, centre_W + half)});
+  auto s = rig.WaitFor([](const OccupancySnapshot& s) {
+    return s.sequence > 5 &&
+           std::all_of(s.health.cameras.begin() + 1, s.health.cameras.end(),
+                       [](const CameraHealth& h) { return h.state == CameraState::kOk; });
+  });
+  ASSERT_NE(s, nullptr) << "the other cameras did not come up within 10 s";
+  EXPECT_EQ(s->health.cameras[0].state, CameraState::kFailed);
+  EXPECT_EQ(s->health.cameras[0].fault, static_cast<std::uint8_t>(capture::CameraFault::kBlocked));
+  EXPECT_TRUE(s->health.degraded);
+  EXPECT_EQ(rig.PointsReportedFree(*s), 0);
   rig.pipeline->Stop();
 }
 

@@ -181,8 +181,8 @@ std::uint64_t Cells(const dds_sequence_hullguard_GridRun& runs) {
 }
 
 const char* FaultName(std::uint8_t fault) {
-  static constexpr const char* kNames[] = {"none",      "frozen", "black",
-                                           "saturated", "moved",  "unlearned"};
+  static constexpr const char* kNames[] = {"none",  "frozen",    "black",  "saturated",
+                                           "moved", "unlearned", "blocked"};
   return fault < std::size(kNames) ? kNames[fault] : "unknown";
 }
 
