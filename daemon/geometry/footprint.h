@@ -43,9 +43,12 @@ struct Footprint {
 /// Points are projected relative to the camera centre o:
 /// P (x, 1) = M (x - o) + c, with M = P's left 3x3 and c = M o + P's last
 /// column (nearly zero), computed once without rounding error. Every term is
-/// then of the order of the focal length times the point's distance from the
-/// camera, so the rounding error of u and v stays near 1e-16 times the focal
-/// length whatever the coordinates. Projected as M x + P's last column, terms
+/// then of the order of a row of K times the point's distance from the
+/// camera, so the rounding error of u and v stays near 1e-16 times the
+/// largest entry of K over the point's depth ratio, whatever the coordinates
+/// (about 1e-10 px for a square-pixel lens; intrinsics with focal lengths a
+/// million times apart, which the camera loader accepts, can reach a few
+/// 1e-6 px). Projected as M x + P's last column, terms
 /// of the size of the focal length times the coordinates (site frames place
 /// cells a million metres from the origin) cancel, and the error exceeded
 /// kFootprintSlackPx: a corner on the wrong side of a pixel border, a box
@@ -110,6 +113,15 @@ struct BoxProjector {
         }
       }
     }
+  }
+
+  /// Image coordinates (u, v) of p_W (meaningful where it lies in front), by
+  /// the same arithmetic as ProjectGrid().
+  [[nodiscard]] Eigen::Vector2d ProjectPoint(const Eigen::Vector3d& p_W) const {
+    const double xs[1] = {p_W.x()}, ys[1] = {p_W.y()}, zs[1] = {p_W.z()};
+    double uv[2], z[1];
+    ProjectGrid<1>(xs, ys, zs, uv, z);
+    return {uv[0], uv[1]};
   }
 
   /// Footprint of the box [lo, hi]. Every point of the box projects inside

@@ -237,10 +237,10 @@ class Octree::Updater {
     if (*std::min_element(g.z[c], g.z[c] + points) <= geometry::kMinFrontDepth) return false;
     double cu, cv;
     if (grown) {
-      const Eigen::Vector3d p =
-          tree_.cameras_[c].projector().P * Eigen::Vector4d(g.xs[1], g.ys[1], g.zs[1], 1.0);
-      cu = p.x() / p.z();
-      cv = p.y() / p.z();
+      const Eigen::Vector2d p =
+          tree_.cameras_[c].projector().ProjectPoint({g.xs[1], g.ys[1], g.zs[1]});
+      cu = p.x();
+      cv = p.y();
     } else {
       cu = g.uv[c][2 * 13];
       cv = g.uv[c][2 * 13 + 1];

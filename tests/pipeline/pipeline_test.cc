@@ -287,16 +287,16 @@ TEST(PipelineTest, ACameraInsideAnObstacleIsFailedBlocked) {
   const Eigen::Vector3d half(0.0005, 0.0005, 0.0005);
   Rig rig(scene, 2.0, 0, 0.0, {}, false,
           {geometry::TriangleMesh::Box(centre_W - half, centre_W + half)});
-  auto s = rig.WaitFor([](const OccupancySnapshot& s) {
+  auto up = rig.WaitFor([](const OccupancySnapshot& s) {
     return s.sequence > 5 &&
            std::all_of(s.health.cameras.begin() + 1, s.health.cameras.end(),
                        [](const CameraHealth& h) { return h.state == CameraState::kOk; });
   });
-  ASSERT_NE(s, nullptr) << "the other cameras did not come up within 10 s";
-  EXPECT_EQ(s->health.cameras[0].state, CameraState::kFailed);
-  EXPECT_EQ(s->health.cameras[0].fault, static_cast<std::uint8_t>(capture::CameraFault::kBlocked));
-  EXPECT_TRUE(s->health.degraded);
-  EXPECT_EQ(rig.PointsReportedFree(*s), 0);
+  ASSERT_NE(up, nullptr) << "the other cameras did not come up within 10 s";
+  EXPECT_EQ(up->health.cameras[0].state, CameraState::kFailed);
+  EXPECT_EQ(up->health.cameras[0].fault, static_cast<std::uint8_t>(capture::CameraFault::kBlocked));
+  EXPECT_TRUE(up->health.degraded);
+  EXPECT_EQ(rig.PointsReportedFree(*up), 0);
   rig.pipeline->Stop();
 }
 

@@ -342,7 +342,9 @@ TEST(TrackerTest, APersonHoldingSomethingOutIsOneTrack) {
       ASSERT_EQ(tracks.size(), 1u) << "frame " << k;
       const Vector3d& p = tracks[0].centre_W;
       EXPECT_LT((p - c).norm(), (p - held).norm()) << "frame " << k;
-      if (k >= 20) EXPECT_LT((p - c).norm(), 0.1) << "frame " << k;
+      if (k >= 20) {
+        EXPECT_LT((p - c).norm(), 0.1) << "frame " << k;
+      }
     }
     EXPECT_EQ(tracker.stats().births, 1u);
     EXPECT_EQ(tracker.stats().object_births, 0u);
@@ -374,7 +376,9 @@ TEST(TrackerTest, APersonWithThingsAtBothHandsIsOneTrack) {
       tracker.Step(StampNs(k));
       const auto& tracks = tracker.tracks();
       ASSERT_EQ(tracks.size(), 1u) << "frame " << k;
-      if (k >= 20) EXPECT_LT((tracks[0].centre_W - c).norm(), 0.1) << "frame " << k;
+      if (k >= 20) {
+        EXPECT_LT((tracks[0].centre_W - c).norm(), 0.1) << "frame " << k;
+      }
     }
     EXPECT_EQ(tracker.stats().births, 1u);
     EXPECT_EQ(tracker.stats().object_births, 0u);
