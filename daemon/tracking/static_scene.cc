@@ -319,7 +319,9 @@ void ForEachSeenVoxel(const VoxelGrid& g, const geometry::CameraModel& camera,
     in_view(i);
     const std::size_t pixel =
         static_cast<std::size_t>(w) * depth.width + static_cast<std::size_t>(u);
-    if (p_C.z() <= depth.centre_depth[pixel]) seen(i);
+    // A camera inside an obstacle (ObstacleDepthMap::blocked) sees nothing,
+    // as the pipeline reports it (failed, blocked).
+    if (!depth.blocked && p_C.z() <= depth.centre_depth[pixel]) seen(i);
   });
 }
 

@@ -67,7 +67,8 @@ void VoxelizeSolid(const VoxelGrid& grid, const sim::SolidGeometry& solid,
 /// the obstacles hide from every camera: its centre lies in some camera's view
 /// (in front of it, projecting into the image), and for every camera it is
 /// out of view or behind the obstacle surface seen through the pixel it
-/// projects to (geometry::RenderObstacleDepth, centre_depth). Space out of
+/// projects to (geometry::RenderObstacleDepth, centre_depth), or the camera
+/// is blocked (an obstacle inside its lens: it sees nothing). Space out of
 /// every camera's view (above the cameras, say) stays kFree: the rig does not
 /// cover it, and a person's ellipsoid gains nothing by reaching into it.
 /// Without cameras every voxel that is not kKnown is kOccluded.

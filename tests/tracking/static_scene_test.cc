@@ -238,6 +238,21 @@ TEST(StaticVoxelsTest, KnownOccludedAndFree) {
   EXPECT_EQ(cell.At(none, {2.0, 2.0, 0.92}), VoxelState::kKnown);
 }
 
+// A camera inside an obstacle mesh (its housing modelled into the meshes) is
+// blocked and sees nothing, as the pipeline reports it: what only it has in
+// view is occluded, what no camera has in view stays free.
+TEST(StaticVoxelsTest, ABlockedCameraSeesNothing) {
+  TableCell cell;
+  const Vector3d centre(2, 2.01, 3.5);  // TableCell's camera.
+  const Vector3d half(0.0005, 0.0005, 0.0005);
+  cell.scene.meshes.push_back(geometry::TriangleMesh::Box(centre - half, centre + half));
+  const StaticVoxels v = BuildStaticVoxels(cell.grid, cell.scene);
+  EXPECT_EQ(cell.At(v, {0.5, 0.5, 0.4}), VoxelState::kOccluded);
+  EXPECT_EQ(cell.At(v, {2.0, 2.0, 1.5}), VoxelState::kOccluded);
+  EXPECT_EQ(cell.At(v, {0.1, 0.1, 1.9}), VoxelState::kFree);  // Out of its view.
+  EXPECT_EQ(cell.At(v, {2.0, 2.0, 0.92}), VoxelState::kKnown);
+}
+
 TEST(StaticVoxelsTest, MeshCollisionBoxesLeaveSpaceUnderATable) {
   TableCell cell;
   const StaticVoxels v = BuildStaticVoxels(cell.grid, cell.scene);
