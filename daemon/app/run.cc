@@ -1,7 +1,6 @@
 #include "app/run.h"
 
 #include <algorithm>
-#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
@@ -227,9 +226,10 @@ int RunPipeline(const Config& config, double duration_s) {
   // the fusion cycle never waits on the network.
   std::unique_ptr<SnapshotStage> publish_stage;
   std::function<void()> check_publisher = [] {};
-  // Another publisher writes this daemon's topics: the health line, STATUS=
-  // and the black box's trigger say degraded, as the status samples do.
-  std::atomic<bool> foreign_publisher{false};
+  // Writers of the daemon's topics besides its own (checked from the main
+  // loop): while there are any, the health line, STATUS= and the black box's
+  // trigger say degraded, as the status samples do.
+  int other_publishers = 0;
 #ifdef HG_WITH_DDS
   publish::DdsPublisher publisher(
       {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled, config.tracking.enabled},
@@ -248,7 +248,6 @@ int RunPipeline(const Config& config, double duration_s) {
   }
   // From the main loop: another publisher on the topics, and samples too old
   // to send, each logged when it changes.
-  int other_publishers = 0;
   std::uint64_t stale_seen = 0;
   check_publisher = [&] {
     const int others = publisher.CheckOtherPublishers();
@@ -262,7 +261,6 @@ int RunPipeline(const Config& config, double duration_s) {
       log::Info("the other publisher of {} is gone", publisher.status_topic());
     }
     other_publishers = others;
-    foreign_publisher.store(others > 0);
     const std::uint64_t stale = publisher.stale_dropped();
     if (stale != stale_seen) {
       log::Warn(
@@ -343,7 +341,7 @@ int RunPipeline(const Config& config, double duration_s) {
     if (black_box && config.blackbox.on_degraded) {
       if (const auto s = pipeline.Latest(); s && s->sequence != blackbox_seen) {
         blackbox_seen = s->sequence;
-        degraded_trigger.Observe(s->health.degraded || foreign_publisher.load());
+        degraded_trigger.Observe(s->health.degraded || other_publishers > 0);
       }
       if (degraded_trigger.ShouldDump(now, black_box->busy()) &&
           black_box->RequestDump("degraded")) {
@@ -361,7 +359,7 @@ int RunPipeline(const Config& config, double duration_s) {
                                                  return h.state == pipeline::CameraState::kStarting;
                                                });
         if (cameras_open || now - start >= kReadyWait) {
-          const std::string line = HealthLine(*s, tracking.get(), foreign_publisher.load());
+          const std::string line = HealthLine(*s, tracking.get(), other_publishers > 0);
           if (!cameras_open) log::Warn("ready without every camera: {}", line);
           notifier.Ready();
           watchdog.SetStatus(line);
@@ -372,8 +370,8 @@ int RunPipeline(const Config& config, double duration_s) {
     if (now >= next_report) {
       next_report += std::chrono::seconds(1);
       if (const auto s = pipeline.Latest()) {
-        const std::string line = HealthLine(*s, tracking.get(), foreign_publisher.load());
-        LogHealth(*s, line, foreign_publisher.load());
+        const std::string line = HealthLine(*s, tracking.get(), other_publishers > 0);
+        LogHealth(*s, line, other_publishers > 0);
         watchdog.SetStatus(line);
       }
     }
@@ -384,8 +382,7 @@ int RunPipeline(const Config& config, double duration_s) {
   if (publish_stage) publish_stage->Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
-    LogHealth(*s, HealthLine(*s, tracking.get(), foreign_publisher.load()),
-              foreign_publisher.load());
+    LogHealth(*s, HealthLine(*s, tracking.get(), other_publishers > 0), other_publishers > 0);
   }
   log::Info("stopped");
   return 0;

@@ -341,16 +341,15 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   in.seekg(0);
   if (!in.read(reinterpret_cast<char*>(bytes->data()),
                static_cast<std::streamsize>(bytes->size())) ||
-      bytes->empty() ||
-      !common::IsTrustedImageFormat(
-          std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size())) ||
-      !common::IsCompleteImage(
-          std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size()))) {
+      bytes->empty()) {
+    return false;
+  }
+  const std::string_view encoded_bytes(reinterpret_cast<const char*>(bytes->data()), bytes->size());
+  if (!common::IsTrustedImageFormat(encoded_bytes) || !common::IsCompleteImage(encoded_bytes)) {
     return false;
   }
   const cv::Mat encoded(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());
-  const common::ImageHeaderFacts facts = common::InspectImageHeader(
-      std::string_view(reinterpret_cast<const char*>(bytes->data()), bytes->size()));
+  const common::ImageHeaderFacts facts = common::InspectImageHeader(encoded_bytes);
   // A keyed-out background (PNG tRNS) is dropped by the decoder: the frame
   // would read as drawn, not as meant. Unusable, as a damaged one.
   if (facts.png_colour_key) return false;

@@ -1148,41 +1148,40 @@ std::optional<std::pair<Cell, LeafState>> Octree::LeafAt(const Eigen::Vector3d& 
     else if (p_W[axis] > box.max[axis] && i < 7)
       ++i;
   }
-  std::uint32_t index = cell.x + 8 * cell.y + 64 * cell.z;  // The root's node.
-  for (;;) {
-    const Node& n = nodes_.get()[index];
-    if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
-    if (n.state != kInner && n.state != kPackedInner) {
-      return std::make_pair(cell, static_cast<LeafState>(n.state));
-    }
-    // Pick the child whose box holds the point, by the same arithmetic as CellBox.
-    const common::Box3 upper = CellBox(b, cell.Child(7));
-    const std::uint32_t i = (p_W.x() >= upper.min.x() ? 1 : 0) |
-                            (p_W.y() >= upper.min.y() ? 2 : 0) | (p_W.z() >= upper.min.z() ? 4 : 0);
-    if (n.state == kPackedInner) return std::make_pair(cell.Child(i), PackedChild(n.children, i));
-    cell = cell.Child(i);
-    index = n.children + i;
-  }
+  // Down to a leaf, by the child whose box holds the point (the same
+  // arithmetic as CellBox).
+  return Descend(cell, config_.depth, [&](const Cell& parent) {
+    const common::Box3 upper = CellBox(b, parent.Child(7));
+    return static_cast<std::uint32_t>((p_W.x() >= upper.min.x() ? 1 : 0) |
+                                      (p_W.y() >= upper.min.y() ? 2 : 0) |
+                                      (p_W.z() >= upper.min.z() ? 4 : 0));
+  });
 }
 
 std::optional<std::pair<Cell, LeafState>> Octree::LeafContaining(const Cell& target) const {
-  if (target.level < kRootLevel || target.level > 31) return std::nullopt;
+  if (target.level < kRootLevel || target.level > kMaxDepth) return std::nullopt;
   const std::uint64_t side = std::uint64_t{1} << target.level;
   if (target.x >= side || target.y >= side || target.z >= side) return std::nullopt;
   const int shift = target.level - kRootLevel;
-  Cell cell{kRootLevel, target.x >> shift, target.y >> shift, target.z >> shift};
+  const Cell root{kRootLevel, target.x >> shift, target.y >> shift, target.z >> shift};
+  // Down by the target's coordinate bits, stopping at its level.
+  return Descend(root, target.level, [&](const Cell& parent) {
+    const int s = target.level - parent.level - 1;
+    return ((target.x >> s) & 1u) | (((target.y >> s) & 1u) << 1) | (((target.z >> s) & 1u) << 2);
+  });
+}
+
+template <class PickChild>
+std::optional<std::pair<Cell, LeafState>> Octree::Descend(Cell cell, int stop_level,
+                                                          PickChild pick_child) const {
   std::uint32_t index = cell.x + 8 * cell.y + 64 * cell.z;  // The root's node.
   for (;;) {
     const Node& n = nodes_.get()[index];
     if ((n.flags & kPending) != 0) return std::make_pair(cell, LeafState::kOccupied);
-    if ((n.state != kInner && n.state != kPackedInner) || cell.level == target.level) {
-      return std::make_pair(cell, n.state != kInner && n.state != kPackedInner
-                                      ? static_cast<LeafState>(n.state)
-                                      : SummaryOf(index));
-    }
-    const int s = target.level - cell.level - 1;
-    const std::uint32_t i =
-        ((target.x >> s) & 1u) | (((target.y >> s) & 1u) << 1) | (((target.z >> s) & 1u) << 2);
+    const bool inner = n.state == kInner || n.state == kPackedInner;
+    if (!inner) return std::make_pair(cell, static_cast<LeafState>(n.state));
+    if (cell.level == stop_level) return std::make_pair(cell, SummaryOf(index));
+    const std::uint32_t i = pick_child(cell);
     if (n.state == kPackedInner) return std::make_pair(cell.Child(i), PackedChild(n.children, i));
     cell = cell.Child(i);
     index = n.children + i;

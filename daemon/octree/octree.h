@@ -304,6 +304,12 @@ class Octree {
   void VisitLeaves(std::uint32_t index, const Cell& cell, Fn& fn) const;
   template <class Fn>
   void VisitCellsUpTo(std::uint32_t index, const Cell& cell, int level, Fn& fn) const;
+  /// From root cell `cell` down to the leaf that pick_child(const Cell& parent)
+  /// (the child index, 0..7) leads to, or to the node at `stop_level`, read
+  /// as SummaryOf() (a pending node counts as an occupied leaf).
+  template <class PickChild>
+  [[nodiscard]] std::optional<std::pair<Cell, LeafState>> Descend(Cell cell, int stop_level,
+                                                                  PickChild pick_child) const;
   /// What the subtree's leaves hold: occupied over occluded over free.
   [[nodiscard]] LeafState SummaryOf(std::uint32_t index) const;
 

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "capture/camera_health.h"
 #include "common/cli_checks.h"
 #include "common/json.h"
 #include "hullguard.h"
@@ -181,9 +182,7 @@ std::uint64_t Cells(const dds_sequence_hullguard_GridRun& runs) {
 }
 
 const char* FaultName(std::uint8_t fault) {
-  static constexpr const char* kNames[] = {"none",  "frozen",    "black",  "saturated",
-                                           "moved", "unlearned", "blocked"};
-  return fault < std::size(kNames) ? kNames[fault] : "unknown";
+  return capture::ToString(static_cast<capture::CameraFault>(fault));
 }
 
 double OccupiedVolumeM3(const hullguard_Occupancy& s) {
