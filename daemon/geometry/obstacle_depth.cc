@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "common/check.h"
+#include "geometry/footprint.h"
 
 namespace hg::geometry {
 namespace {
@@ -25,9 +26,10 @@ constexpr double kNearPlaneM = 1e-3;
 constexpr double kTol = 1e-12;
 
 /// Extra relative shrink of every near-depth bound. It absorbs the rounding of
-/// the world -> camera transform (the same points computed elsewhere may differ
-/// by a few ulps of the scene coordinates) and stays far below the 1e-5 m scale
-/// at which depth comparisons matter.
+/// the world -> camera transform (computed relative to the camera centre, here
+/// and in the octree's footprints, so its error is a few ulps of the distance
+/// from the camera, not of the scene coordinates) and stays far below the
+/// 1e-5 m scale at which depth comparisons matter.
 constexpr double kDepthMargin = 1e-9;
 
 /// Relative tolerance of the pixel coverage tests; it only ever adds pixels.
@@ -344,12 +346,20 @@ ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
   map.centre_depth.assign(pixels, ObstacleDepthMap::kNone);
 
   Rasteriser rasteriser(pinhole, &map);
+  // World -> camera relative to the camera centre (as the octree's footprints
+  // are projected): R p + t directly cancels terms of the size of the
+  // coordinates, an error of 1e-10 m a million metres out, above the depth
+  // margin of an obstacle a few centimetres from the lens.
+  Eigen::Matrix<double, 3, 4> rigid;
+  rigid.leftCols<3>() = pinhole.R_CW;
+  rigid.col(3) = pinhole.t_CW;
+  const BoxProjector to_camera(rigid);
   std::vector<Eigen::Vector3d> vertices_C;
   for (const TriangleMesh& mesh : meshes) {
     vertices_C.clear();
     vertices_C.reserve(mesh.vertices.size());
     for (const Eigen::Vector3d& p_W : mesh.vertices) {
-      vertices_C.push_back(pinhole.R_CW * p_W + pinhole.t_CW);
+      vertices_C.push_back(to_camera.Homogeneous(p_W));
     }
     const int vertex_count = static_cast<int>(vertices_C.size());
     for (const auto& t : mesh.triangles) {
