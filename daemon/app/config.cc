@@ -276,7 +276,10 @@ const CameraBlockKey kCameraBlockKeys[] = {
     {"name", "string", "required", "Unique camera name."},
     {"width", "integer", "1920", "Image width (pixels), 1 .. 65535."},
     {"height", "integer", "1080", "Image height (pixels), 1 .. 65535."},
-    {"K", "9 numbers", "required (unless P)", "Intrinsics, row-major, last row 0 0 1."},
+    {"K", "9 numbers", "required (unless P)",
+     "Intrinsics, row-major, last row 0 0 1; focal lengths 1 .. 1e6 px, at most 10 times apart; "
+     "skew at most fx; principal point within an image size of the image, and the image at most "
+     "100 focal lengths from it."},
     {"distortion", "5 numbers", "0 0 0 0 0", "OpenCV k1 k2 p1 p2 k3."},
     {"R", "9 numbers", "-", "World-to-camera rotation, row-major; with t."},
     {"t", "3 numbers", "-", "World-to-camera translation (m); with R."},

@@ -15,6 +15,7 @@
 #include "common/config_error.h"
 #include "common/limits.h"
 #include "common/yaml_file.h"
+#include "geometry/footprint.h"
 
 namespace hg::geometry {
 namespace {
@@ -200,10 +201,27 @@ class CameraParser {
       std::snprintf(got, sizeof(got), " (got %.6g, %.6g)", K(0, 0), K(1, 1));
       fail(intrinsics, std::string("focal lengths must be within [1, 1e6] px") + got);
     }
+    if (!(K(0, 0) <= kMaxFocalAspect * K(1, 1) && K(1, 1) <= kMaxFocalAspect * K(0, 0))) {
+      char problem[128];
+      std::snprintf(problem, sizeof(problem),
+                    "focal lengths more than %g times apart (got %.6g, %.6g)", kMaxFocalAspect,
+                    K(0, 0), K(1, 1));
+      fail(intrinsics, problem);
+    }
     if (!(std::abs(K(0, 1)) <= K(0, 0))) fail(intrinsics, "skew larger than the focal length");
     if (!(K(0, 2) >= -camera.width && K(0, 2) <= 2.0 * camera.width && K(1, 2) >= -camera.height &&
           K(1, 2) <= 2.0 * camera.height)) {
       fail(intrinsics, "principal point more than an image size outside the image");
+    }
+    const double reach_u = std::max(std::abs(K(0, 2)), std::abs(camera.width - K(0, 2))) / K(0, 0);
+    const double reach_v = std::max(std::abs(K(1, 2)), std::abs(camera.height - K(1, 2))) / K(1, 1);
+    if (!(reach_u <= kMaxImageReach && reach_v <= kMaxImageReach)) {
+      char problem[160];
+      std::snprintf(problem, sizeof(problem),
+                    "the image reaches %.6g focal lengths from the principal point (at most %g: "
+                    "a view wider than any pinhole lens)",
+                    std::max(reach_u, reach_v), kMaxImageReach);
+      fail(intrinsics, problem);
     }
     const Eigen::Vector3d centre = camera.CentreW();
     if (!(centre.lpNorm<Eigen::Infinity>() <= common::kMaxCoordinateM)) {

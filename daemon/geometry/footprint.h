@@ -21,6 +21,18 @@ inline constexpr double kMinFrontDepth = 1e-6;
 /// Slack (pixels) added on each side before rounding to pixels, so that rounding
 /// errors of the projection can only grow the rectangle.
 inline constexpr double kFootprintSlackPx = 1e-6;
+/// What the camera loaders accept, so that the projection's rounding error
+/// stays far inside kFootprintSlackPx (it grows with how far off the optical
+/// axis, in focal lengths, a point in view may lie):
+/// the largest ratio of the two focal lengths, either way round (real lenses
+/// have square pixels to a few per cent; at a ratio of 1e6 the error reached
+/// 2e-5 px) ...
+inline constexpr double kMaxFocalAspect = 10.0;
+/// ... and the farthest the image may reach from the principal point, in focal
+/// lengths along each axis: a view up to 179.4 degrees wide, beyond any lens a
+/// pinhole model describes (1 px focal lengths on 65535 px images came within
+/// a factor of a few of the slack).
+inline constexpr double kMaxImageReach = 100.0;
 
 /// The pixel holding image coordinate x (pixel u covers [u - 0.5, u + 0.5)),
 /// clamped far outside any image.
@@ -46,9 +58,9 @@ struct Footprint {
 /// then of the order of a row of K times the point's distance from the
 /// camera, so the rounding error of u and v stays near 1e-16 times the
 /// largest entry of K over the point's depth ratio, whatever the coordinates
-/// (about 1e-10 px for a square-pixel lens; intrinsics with focal lengths a
-/// million times apart, which the camera loader accepts, can reach a few
-/// 1e-6 px). Projected as M x + P's last column, terms
+/// (below 1e-8 px within the loaders' limits, kMaxFocalAspect and
+/// kMaxImageReach).
+/// Projected as M x + P's last column, terms
 /// of the size of the focal length times the coordinates (site frames place
 /// cells a million metres from the origin) cancel, and the error exceeded
 /// kFootprintSlackPx: a corner on the wrong side of a pixel border, a box
@@ -113,6 +125,18 @@ struct BoxProjector {
         }
       }
     }
+  }
+
+  /// P (p_W, 1), the homogeneous image point, computed relative to the
+  /// camera centre like ProjectGrid(): its error is of the order of 1e-16
+  /// times P's rows times the distance of p_W from the camera, not times the
+  /// coordinates. For P = [R | t] it is the camera-frame point.
+  [[nodiscard]] Eigen::Vector3d Homogeneous(const Eigen::Vector3d& p_W) const {
+    const Eigen::Vector3d d = p_W - origin;
+    Eigen::Vector3d out;
+    for (int r = 0; r < 3; ++r)
+      out[r] = P(r, 0) * d.x() + P(r, 1) * d.y() + (P(r, 2) * d.z() + offset[r]);
+    return out;
   }
 
   /// Image coordinates (u, v) of p_W (meaningful where it lies in front), by

@@ -303,6 +303,12 @@ TEST(CameraYamlLookAtTest, Errors) {
   ExpectError(base + "    up: [-1, -1, 2]\n", 8,
               {"cameras[0].up: (nearly) parallel to the viewing direction"});
   ExpectError(Replace(base, "K: [500,", "K: [-500,"), 5, {"cameras[0].K: focal lengths"});
+  ExpectError(Replace(base, "K: [500,", "K: [5101,"), 5,
+              {"cameras[0].K: focal lengths more than 10 times apart (got 5101, 510)"});
+  ExpectError(Replace(base, "K: [500,", "K: [50,"), 5,
+              {"cameras[0].K: focal lengths more than 10 times apart (got 50, 510)"});
+  ExpectError(Replace(Replace(base, "K: [500,", "K: [3,"), "510,", "6,"), 5,
+              {"cameras[0].K: the image reaches 110.167 focal lengths"});
 }
 
 TEST(CameraYamlErrorTest, WrongCount) {

@@ -4,6 +4,7 @@
 // to its sub-boxes.
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -230,6 +231,88 @@ TEST(BoxProjectorTest, FootprintHoldsTheExactCornerPixelsFarFromTheOrigin) {
     }
   }
   EXPECT_GT(checked, 50000);
+}
+
+// The projection's rounding error stays far below kFootprintSlackPx at the
+// edges of what the camera loader accepts (camera_yaml.cc, CheckPlausible):
+// focal lengths 1 .. 1e6 px at most kMaxFocalAspect apart, skew up to the
+// focal length, the principal point up to an image size outside images up to
+// 65535 px that reach at most kMaxImageReach focal lengths from it, cameras a
+// million metres from the origin, points 5 cm .. 5 m in front. Only points that project into the
+// image count: a footprint's border inside the image is the projection of such a point. The error
+// grows with the ratio of the focal lengths (a point in view at v / fy = 65535 is far off the axis
+// in units of fx): at 1e6, which the loader used to accept, it reached 2e-5 px, twenty times the
+// slack.
+TEST(BoxProjectorTest, ProjectionErrorStaysFarBelowTheSlackAtTheLoadersLimits) {
+  std::mt19937_64 rng(78);
+  std::uniform_real_distribution<double> u01(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  double worst = 0.0;
+  int checked = 0, cameras = 0;
+  for (int camera = 0; camera < 1000; ++camera) {
+    // Half of the cameras at the extremes: the longest focal length the
+    // loader takes, the other as far from it as allowed.
+    const bool extreme = camera % 2 == 0;
+    double fx = extreme ? 1e6 : std::pow(10.0, 6.0 * u01(rng));
+    double fy = std::clamp(extreme ? fx / geometry::kMaxFocalAspect
+                                   : fx * std::pow(geometry::kMaxFocalAspect, 2.0 * u01(rng) - 1.0),
+                           1.0, 1e6);
+    if (camera % 4 == 2) std::swap(fx, fy);
+    const int width = camera % 3 == 0 ? 65535 : 1 + static_cast<int>(4000 * u01(rng));
+    const int height = camera % 3 == 1 ? 65535 : 1 + static_cast<int>(4000 * u01(rng));
+    // The principal point up to an image size outside, the image reaching at
+    // most kMaxImageReach focal lengths from it.
+    auto principal = [&](int side, double f) {
+      const double c = side * (3.0 * u01(rng) - 1.0);
+      const double limit = geometry::kMaxImageReach * f;
+      return std::clamp(c, side - limit, limit);
+    };
+    const double cx = principal(width, fx), cy = principal(height, fy);
+    if (std::max(std::abs(cx), std::abs(width - cx)) > geometry::kMaxImageReach * fx ||
+        std::max(std::abs(cy), std::abs(height - cy)) > geometry::kMaxImageReach * fy) {
+      continue;  // Too short a focal length for so large an image: refused.
+    }
+    ++cameras;
+    Eigen::Matrix3d K;
+    K << fx, fx * (2.0 * u01(rng) - 1.0), cx, 0, fy, cy, 0, 0, 1;
+    const Eigen::Matrix3d R = Eigen::Quaterniond(normal(rng), normal(rng), normal(rng), normal(rng))
+                                  .normalized()
+                                  .matrix();
+    const Eigen::Vector3d centre_W(1e6 * (2.0 * u01(rng) - 1.0), 1e6 * (2.0 * u01(rng) - 1.0),
+                                   1e6 * (2.0 * u01(rng) - 1.0));
+    Eigen::Matrix<double, 3, 4> Rt;
+    Rt.leftCols<3>() = R;
+    Rt.col(3) = -R * centre_W;
+    const Eigen::Matrix<double, 3, 4> P = K * Rt;
+    const geometry::BoxProjector projector(P);
+    for (int trial = 0; trial < 100; ++trial) {
+      const double depth = std::pow(10.0, -1.3 + 2.0 * u01(rng));
+      const Eigen::Vector3d p_C =
+          depth * (K.inverse() * Eigen::Vector3d(width * u01(rng), height * u01(rng), 1.0));
+      const Eigen::Vector3d p_W = R.transpose() * p_C + centre_W;
+      const Eigen::Vector2d uv = projector.ProjectPoint(p_W);
+      for (int r = 0; r < 2; ++r) {
+        __float128 num = P(r, 3), den = P(2, 3);
+        for (int a = 0; a < 3; ++a) {
+          num += static_cast<__float128>(P(r, a)) * p_W[a];
+          den += static_cast<__float128>(P(2, a)) * p_W[a];
+        }
+        const double exact = static_cast<double>(num / den);
+        if (exact < -0.5 || exact > (r == 0 ? width : height) - 0.5) continue;
+        ++checked;
+        const double error = std::abs(uv[r] - exact);
+        worst = std::max(worst, error);
+        ASSERT_LT(error, geometry::kFootprintSlackPx / 100)
+            << "camera " << camera << " K [" << K.row(0) << "; " << K.row(1) << "], width " << width
+            << ", height " << height << ", coordinate " << r << " at " << exact;
+      }
+    }
+  }
+  EXPECT_GT(cameras, 800);
+  EXPECT_GT(checked, 100000);
+  char worst_text[32];
+  std::snprintf(worst_text, sizeof(worst_text), "%.3g", worst);
+  RecordProperty("worst_error_px", worst_text);
 }
 
 TEST(ObstacleRelationTest, SameVerdictAndMonotoneOnSubBoxesAndCertifiesFreeAgrees) {
