@@ -30,6 +30,7 @@
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 #include "geometry/mesh.h"
+#include "geometry/obstacle_depth.h"
 #include "octree/octree.h"
 #include "sim/body.h"
 #include "sim/scene.h"
@@ -1821,6 +1822,7 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
         }
         if (!camera) continue;
         if (camera->timeout_ms == 0) camera->timeout_ms = timing.camera_timeout_ms;
+        camera->line = entry.line;
         config.cameras.push_back(std::move(*camera));
       }
     }
@@ -1856,7 +1858,6 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
       config.obstacles.push_back(std::move(obstacle));
     }
   }
-
   // The black box's rings are sized from the cameras: checked once they all read well.
   if (config.blackbox.seconds > 0.0 && r.error_count() == 0) CheckBlackBox(r, sections, config);
 
@@ -1888,6 +1889,23 @@ std::vector<std::string> SimSpeedNotices(const Config& config) {
                   "part reached meanwhile; raise it",
                   config.motion.max_speed_mps, path.c_str(), fastest);
     notices.emplace_back(ConfigError::At(config.source_file, config.max_speed_line, text).what());
+  }
+  return notices;
+}
+
+std::vector<std::string> BlockedCameraNotices(const Config& config) {
+  std::vector<std::string> notices;
+  if (config.obstacles.empty()) return notices;
+  std::vector<geometry::TriangleMesh> meshes;
+  for (const ObstacleConfig& o : config.obstacles) meshes.push_back(geometry::LoadMesh(o.file));
+  for (std::size_t c = 0; c < config.cameras.size(); ++c) {
+    const geometry::CameraModel& model = config.cameras[c].model;
+    if (!geometry::RenderObstacleDepth(model.Pinhole(), meshes).blocked) continue;
+    notices.emplace_back(ConfigError::At(config.source_file, config.cameras[c].line,
+                                         "cameras[" + std::to_string(c) + "]: camera '" +
+                                             model.name + "' " +
+                                             geometry::ObstacleDepthMap::kBlockedText)
+                             .what());
   }
   return notices;
 }

@@ -136,6 +136,8 @@ struct CameraConfig {
   /// Silence after which the camera counts as seeing nothing (ms); the loader
   /// fills in timing.camera_timeout_ms when the entry does not override it.
   int timeout_ms = 0;
+  /// Line of the camera's entry in Config::source_file (0: not read from a file).
+  int line = 0;
 };
 
 /// Background model of the silhouette stage.
@@ -254,6 +256,14 @@ struct Config {
 /// scripts (about a second for the paper cell): hullguardd calls it, once,
 /// not LoadConfig.
 [[nodiscard]] std::vector<std::string> SimSpeedNotices(const Config& config);
+
+/// One notice "file:line: cameras[i]: camera 'name' is blocked: ..." per
+/// camera the obstacle meshes block (geometry::ObstacleDepthMap::blocked: a
+/// mesh through its centre, or around it within 10 cm): it would run failed
+/// (blocked), seeing nothing. Renders every camera's obstacle depth (about
+/// 0.2 s per Full HD camera): hullguardd --check-config calls it, not
+/// LoadConfig; a running daemon logs the same as an error.
+[[nodiscard]] std::vector<std::string> BlockedCameraNotices(const Config& config);
 
 /// The recording's camera that config camera `camera` plays in `hullguard
 /// replay`: its replay source's `camera` where it has one, else its own name.

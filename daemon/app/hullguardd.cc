@@ -93,6 +93,9 @@ int main(int argc, char** argv) {
     std::cerr << path << ": speed of the simulated people not checked: " << e.what() << '\n';
   }
   if (!check_path.empty()) {
+    for (const std::string& notice : hg::app::BlockedCameraNotices(config)) {
+      std::cerr << notice << '\n';
+    }
     if (duration_opt->count() > 0) {
       std::cerr << "hullguardd: --duration has no effect with --check-config\n";
     }

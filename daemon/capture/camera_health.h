@@ -21,9 +21,10 @@ enum class CameraFault : std::uint8_t {
   /// No background to tell people from (none kept, and learning at start is
   /// off: background.learn_at_start): set by the pipeline, not the monitor.
   kUnlearned = 5,
-  /// An obstacle mesh reaches within 1 mm in front of the camera centre
-  /// (the camera modelled inside a housing or a robot): every ray is taken
-  /// as blocked, so the camera certifies nothing. Set by the pipeline at
+  /// An obstacle mesh reaches within 1 mm in front of the camera centre, or
+  /// covers its whole view within 10 cm (the camera modelled inside a housing
+  /// or a robot; geometry::ObstacleDepthMap::blocked): every ray is taken as
+  /// blocked, so the camera certifies nothing. Set by the pipeline at
   /// start, for good: a config to mend, not a state that passes.
   kBlocked = 6,
 };

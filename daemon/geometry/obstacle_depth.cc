@@ -164,13 +164,13 @@ std::pair<int, int> PixelRange(double min, double max, double slack, int size) {
           static_cast<int>(std::min(hi, static_cast<double>(size - 1)))};
 }
 
-class Rasteriser {
+/// The part of a camera's view within the near plane: a ball around the
+/// camera centre whose radius is the near plane's distance along the longest
+/// ray through a corner of the image (one pixel beyond it). A triangle in
+/// front of the camera that reaches into it blocks the view.
+class NearBall {
  public:
-  Rasteriser(const CameraModel& camera, ObstacleDepthMap* map)
-      : k_(camera.K), width_(camera.width), height_(camera.height), map_(map) {
-    // The part of the view in front of the near plane lies in a ball around
-    // the camera centre: its radius is the near plane's distance along the
-    // longest ray through a corner of the image (one pixel beyond it).
+  explicit NearBall(const CameraModel& camera) {
     const Eigen::Matrix3d k_inv = camera.K.inverse();
     double longest = 1.0;
     for (const double u : {-1.5, camera.width + 0.5}) {
@@ -179,8 +179,62 @@ class Rasteriser {
         longest = std::max(longest, ray.norm() / ray.z());
       }
     }
-    near_radius_ = kNearPlaneM * longest * (1.0 + 1e-6);
+    radius_ = kNearPlaneM * longest * (1.0 + 1e-6);
   }
+
+  [[nodiscard]] bool Blocks(const std::array<Eigen::Vector3d, 3>& tri_C) const {
+    return std::max({tri_C[0].z(), tri_C[1].z(), tri_C[2].z()}) > 0.0 &&
+           NearestToOrigin(tri_C[0], tri_C[1], tri_C[2]).norm() < radius_;
+  }
+
+ private:
+  double radius_ = 0.0;
+};
+
+/// The meshes' vertices in the camera frame, one mesh at a time, computed
+/// relative to the camera centre (as the octree's footprints are): R p + t
+/// directly cancels terms of the size of the coordinates, an error of 1e-10 m
+/// a million metres out, above the depth margin of an obstacle a few
+/// centimetres from the lens.
+class ToCamera {
+ public:
+  explicit ToCamera(const CameraModel& camera) : rigid_(Rigid(camera)) {}
+
+  /// Calls triangle({a_C, b_C, c_C}) for every triangle of the meshes.
+  template <typename F>
+  void ForEachTriangle(const std::vector<TriangleMesh>& meshes, F&& triangle) {
+    for (const TriangleMesh& mesh : meshes) {
+      vertices_C_.clear();
+      vertices_C_.reserve(mesh.vertices.size());
+      for (const Eigen::Vector3d& p_W : mesh.vertices) {
+        vertices_C_.push_back(rigid_.Homogeneous(p_W));
+      }
+      const int vertex_count = static_cast<int>(vertices_C_.size());
+      for (const auto& t : mesh.triangles) {
+        HG_CHECK(t[0] >= 0 && t[0] < vertex_count && t[1] >= 0 && t[1] < vertex_count &&
+                 t[2] >= 0 && t[2] < vertex_count);
+        triangle(std::array<Eigen::Vector3d, 3>{vertices_C_[t[0]], vertices_C_[t[1]],
+                                                vertices_C_[t[2]]});
+      }
+    }
+  }
+
+ private:
+  static BoxProjector Rigid(const CameraModel& camera) {
+    Eigen::Matrix<double, 3, 4> rigid;
+    rigid.leftCols<3>() = camera.R_CW;
+    rigid.col(3) = camera.t_CW;
+    return BoxProjector(rigid);
+  }
+
+  BoxProjector rigid_;
+  std::vector<Eigen::Vector3d> vertices_C_;
+};
+
+class Rasteriser {
+ public:
+  Rasteriser(const CameraModel& camera, ObstacleDepthMap* map)
+      : k_(camera.K), width_(camera.width), height_(camera.height), map_(map), near_(camera) {}
 
   /// Whether a triangle came so close in front of the camera that the part of
   /// it clipped at the near plane may be in view (an obstacle inside the lens
@@ -188,10 +242,7 @@ class Rasteriser {
   [[nodiscard]] bool blocked() const { return blocked_; }
 
   void Triangle(const std::array<Eigen::Vector3d, 3>& tri_C) {
-    if (!blocked_ && std::max({tri_C[0].z(), tri_C[1].z(), tri_C[2].z()}) > 0.0 &&
-        NearestToOrigin(tri_C[0], tri_C[1], tri_C[2]).norm() < near_radius_) {
-      blocked_ = true;
-    }
+    if (!blocked_ && near_.Blocks(tri_C)) blocked_ = true;
     std::array<Eigen::Vector3d, 4> poly;
     const int count = ClipNear(tri_C, &poly);
     if (count < 3) return;
@@ -328,7 +379,7 @@ class Rasteriser {
   int width_;
   int height_;
   ObstacleDepthMap* map_;
-  double near_radius_ = 0.0;
+  NearBall near_;
   bool blocked_ = false;
 };
 
@@ -346,31 +397,18 @@ ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
   map.centre_depth.assign(pixels, ObstacleDepthMap::kNone);
 
   Rasteriser rasteriser(pinhole, &map);
-  // World -> camera relative to the camera centre (as the octree's footprints
-  // are projected): R p + t directly cancels terms of the size of the
-  // coordinates, an error of 1e-10 m a million metres out, above the depth
-  // margin of an obstacle a few centimetres from the lens.
-  Eigen::Matrix<double, 3, 4> rigid;
-  rigid.leftCols<3>() = pinhole.R_CW;
-  rigid.col(3) = pinhole.t_CW;
-  const BoxProjector to_camera(rigid);
-  std::vector<Eigen::Vector3d> vertices_C;
-  for (const TriangleMesh& mesh : meshes) {
-    vertices_C.clear();
-    vertices_C.reserve(mesh.vertices.size());
-    for (const Eigen::Vector3d& p_W : mesh.vertices) {
-      vertices_C.push_back(to_camera.Homogeneous(p_W));
-    }
-    const int vertex_count = static_cast<int>(vertices_C.size());
-    for (const auto& t : mesh.triangles) {
-      HG_CHECK(t[0] >= 0 && t[0] < vertex_count && t[1] >= 0 && t[1] < vertex_count && t[2] >= 0 &&
-               t[2] < vertex_count);
-      rasteriser.Triangle({vertices_C[t[0]], vertices_C[t[1]], vertices_C[t[2]]});
-    }
-  }
-  if (rasteriser.blocked()) {
+  ToCamera(pinhole).ForEachTriangle(
+      meshes, [&](const std::array<Eigen::Vector3d, 3>& tri_C) { rasteriser.Triangle(tri_C); });
+  // A camera enclosed by a mesh (its housing or mount modelled with the
+  // obstacles) sees an obstacle within a hand's breadth at every pixel: it
+  // could certify at most that shell around its lens free, and is as useless
+  // as one with the mesh through its centre.
+  const bool enclosed = *std::max_element(map.centre_depth.begin(), map.centre_depth.end()) <
+                        ObstacleDepthMap::kEnclosedDepthM;
+  if (rasteriser.blocked() || enclosed) {
     // What the near plane cut off could cover any pixel, at a depth down to
-    // zero: nothing is certainly in front of it.
+    // zero: nothing is certainly in front of it. Enclosed: certifying nothing
+    // is as conservative as the shell.
     map.blocked = true;
     std::fill(map.near_depth.begin(), map.near_depth.end(), 0.0F);
   }

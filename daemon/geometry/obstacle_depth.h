@@ -26,16 +26,27 @@ struct ObstacleDepthMap {
   /// the pixel centre; kNone where that ray hits no obstacle. Used only to label
   /// space hidden behind obstacles (never to certify free space).
   std::vector<float> centre_depth;
-  /// An obstacle reaches within the near plane (1 mm) in front of the camera
-  /// centre, where it cannot be rendered: near_depth is then 0 everywhere, so
-  /// the camera certifies nothing free (it looks through its own housing).
+  /// The camera is blocked: an obstacle reaches within the near plane (1 mm)
+  /// in front of the camera centre, where it cannot be rendered, or the ray
+  /// through every pixel centre meets an obstacle nearer than kEnclosedDepthM
+  /// (the camera inside a mesh: its housing or mount modelled with the
+  /// obstacles). near_depth is then 0 everywhere, so the camera certifies
+  /// nothing free.
   bool blocked = false;
+  static constexpr double kEnclosedDepthM = 0.1;
+  /// What a blocked camera means to the user, after the camera's name.
+  static constexpr const char* kBlockedText =
+      "is blocked: an obstacle reaches within 1 mm in front of its centre or covers its whole "
+      "view within 10 cm (the camera or its mount modelled into the obstacle meshes?); it sees "
+      "nothing and is reported failed (blocked), the status degraded; leave the camera and its "
+      "mount out of the obstacle meshes";
 };
 
 /// Renders the meshes into the depth maps of a pinhole camera (distortion is
 /// ignored: the octree works on undistorted masks). Triangles are clipped at a
 /// near plane 1 mm in front of the camera; one that reaches in front of the
-/// camera within it blocks the whole view (ObstacleDepthMap::blocked).
+/// camera within it blocks the whole view (ObstacleDepthMap::blocked), and so
+/// do obstacles within 10 cm at every pixel.
 [[nodiscard]] ObstacleDepthMap RenderObstacleDepth(const CameraModel& pinhole,
                                                    const std::vector<TriangleMesh>& meshes);
 

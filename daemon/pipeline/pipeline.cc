@@ -53,11 +53,7 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
       // It could still show foreground (never free anything): seeing nothing
       // is as conservative, and the status says what is wrong.
       runtime->blocked = true;
-      log::Error(
-          "{}: an obstacle reaches within 1 mm in front of the camera centre (inside the lens): "
-          "the camera is taken as blocked, sees nothing and is reported failed (blocked); "
-          "leave the camera and its mount out of the obstacle meshes",
-          c.model.name);
+      log::Error("camera '{}' {}", c.model.name, geometry::ObstacleDepthMap::kBlockedText);
     }
     if (heartbeats_ != nullptr) {
       runtime->heartbeat = heartbeats_->Register(std::string("capture ").append(c.model.name));

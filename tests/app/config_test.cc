@@ -1204,5 +1204,49 @@ TEST(ConfigTrackingTest, ReferenceDocListsTheSection) {
   }
 }
 
+// A camera inside an obstacle mesh (its mount modelled with it) runs failed
+// (blocked), seeing nothing: --check-config says so, with the camera's line,
+// before a deployment.
+TEST(ConfigTest, ACameraInsideAnObstacleIsNoticed) {
+  const TempDir dir;
+  // A 10 cm cube around camera a's centre (0, 0, -1); camera b is clear of it.
+  const std::string mesh = dir.Write("mount.obj",
+                                     "v -0.05 -0.05 -1.05\nv 0.05 -0.05 -1.05\nv 0.05 0.05 -1.05\n"
+                                     "v -0.05 0.05 -1.05\nv -0.05 -0.05 -0.95\nv 0.05 -0.05 -0.95\n"
+                                     "v 0.05 0.05 -0.95\nv -0.05 0.05 -0.95\n"
+                                     "f 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\n"
+                                     "f 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n");
+  const std::string two_cameras = std::string(kMinimal) + R"(  - name: b
+    width: 64
+    height: 48
+    K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1]
+    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
+    t: [0, 0, 3]
+    source: {type: aravis, device: cam-b}
+)";
+  EXPECT_TRUE(BlockedCameraNotices(Parse(two_cameras)).empty());
+  const std::vector<std::string> notices =
+      BlockedCameraNotices(Parse(two_cameras + "obstacles:\n  - file: " + mesh + "\n"));
+  ASSERT_EQ(notices.size(), 1u);
+  EXPECT_NE(notices[0].find("t.yaml:4: cameras[0]: camera 'a' is blocked: an obstacle reaches "
+                            "within 1 mm in front of its centre or covers its whole view within "
+                            "10 cm"),
+            std::string::npos)
+      << notices[0];
+  // Moved out of the mesh, the camera is clear.
+  EXPECT_TRUE(BlockedCameraNotices(Parse(Replace(two_cameras, "t: [0, 0, 1]", "t: [0, 0, 1.2]") +
+                                         "obstacles:\n  - file: " + mesh + "\n"))
+                  .empty());
+  // hullguardd --check-config says it, and passes the config.
+  const std::string config_path =
+      dir.Write("blocked.yaml", Replace(two_cameras, "cell:", "dds: {enabled: false}\ncell:") +
+                                    "obstacles:\n  - file: " + mesh + "\n");
+  const testing::ProcessResult check =
+      testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + config_path);
+  EXPECT_EQ(check.code, 0) << check.err;
+  EXPECT_NE(check.err.find("blocked.yaml:5: cameras[0]: camera 'a' is blocked"), std::string::npos)
+      << check.err;
+}
+
 }  // namespace
 }  // namespace hg::app

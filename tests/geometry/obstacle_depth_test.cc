@@ -257,9 +257,16 @@ TEST(RenderObstacleDepthTest, AnObstacleInsideTheNearPlaneBlocksTheWholeView) {
       {"plate 0.5 mm in front", plate(0.0, 5e-4, 5e-3), true},
       {"plate 0.5 mm in front, its edge 0.2 mm beside the axis", plate(2e-4 + 5e-3, 5e-4, 5e-3),
        true},
-      {"plate 2 mm in front", plate(0.0, 2e-3, 5e-3), false},
+      {"plate 2 mm in front, covering the middle", plate(0.0, 2e-3, 5e-4), false},
       {"plate 0.5 mm in front, 1 m to the side", plate(1.0, 5e-4, 5e-3), false},
       {"plate 0.5 mm behind", plate(0.0, -5e-4, 5e-3), false},
+      // Covering the whole view within 10 cm (the camera inside a housing
+      // modelled with the obstacles) blocks it too; beyond, or leaving a
+      // corner open, not.
+      {"plate 2 mm in front, covering the view", plate(0.0, 2e-3, 5e-3), true},
+      {"plate 9 cm in front, covering the view", plate(0.0, 0.09, 0.1), true},
+      {"plate 11 cm in front, covering the view", plate(0.0, 0.11, 0.1), false},
+      {"plate 9 cm in front, a corner of the view open", plate(0.003, 0.09, 0.06), false},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.what);
@@ -269,7 +276,7 @@ TEST(RenderObstacleDepthTest, AnObstacleInsideTheNearPlaneBlocksTheWholeView) {
     if (c.blocked) {
       EXPECT_EQ(*std::max_element(map.near_depth.begin(), map.near_depth.end()), 0.0F);
     } else if (c.mesh.vertices[0].z() > 1e-3 && c.mesh.vertices[0].x() < 0) {
-      EXPECT_NEAR(centre, 2e-3, 1e-6);
+      EXPECT_NEAR(centre, c.mesh.vertices[0].z(), 1e-6);
     } else {
       EXPECT_EQ(centre, kNone);
     }
