@@ -9,6 +9,7 @@
 #include <optional>
 #include <thread>
 
+#include "app/health_line.h"
 #include "app/pipeline_setup.h"
 #include "app/service.h"
 #include "app/snapshot_stage.h"
@@ -72,6 +73,11 @@ std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
   return box;
 }
 
+std::optional<TrackingStats> StatsOf(const TrackingStage* tracking) {
+  if (tracking == nullptr) return std::nullopt;
+  return tracking->stats();
+}
+
 /// The health line at info while all is well, at warning while degraded (so
 /// that `logging.level: warn` still shows what went wrong, once a second).
 // `foreign_publisher`: another publisher writes this daemon's topics (the
@@ -79,101 +85,6 @@ std::unique_ptr<pipeline::BlackBox> MakeBlackBox(const Config& config) {
 void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line,
                bool foreign_publisher) {
   log::Write(s.health.degraded || foreign_publisher ? log::Level::kWarn : log::Level::kInfo, line);
-}
-
-const char* StateName(pipeline::CameraState s) {
-  switch (s) {
-    case pipeline::CameraState::kStarting:
-      return "starting";
-    case pipeline::CameraState::kOk:
-      return "ok";
-    case pipeline::CameraState::kStale:
-      return "stale";
-    case pipeline::CameraState::kFailed:
-      return "failed";
-  }
-  return "?";
-}
-
-// One line of health: the periodic log line and systemd's STATUS=.
-std::string HealthLine(const pipeline::OccupancySnapshot& s, const TrackingStage* tracking,
-                       bool foreign_publisher) {
-  const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
-  // An aborted update says how far it refined: cells of that size everywhere.
-  char aborted[96] = "";
-  if (!s.complete) {
-    // Aborted at the deadline, or (only) short of nodes: said below.
-    const char* what = s.aborted ? "aborted" : "incomplete";
-    if (s.refined_cell_m > 0.0) {
-      std::snprintf(aborted, sizeof(aborted), " (%s, refined to %.1f cm)", what,
-                    s.refined_cell_m * 100.0);
-    } else {
-      std::snprintf(aborted, sizeof(aborted), " (%s)", what);
-    }
-  }
-  if (s.health.unsplit_nodes > 0) {
-    const std::size_t used = std::strlen(aborted);
-    std::snprintf(aborted + used, sizeof(aborted) - used, " (node store full: %lld unsplit)",
-                  static_cast<long long>(s.health.unsplit_nodes));
-  }
-  char head[256];
-  std::snprintf(head, sizeof(head),
-                "cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms cycle %.1f ms "
-                "skew %.1f ms deadline misses %llu missed cycles %llu |",
-                static_cast<unsigned long long>(s.sequence),
-                s.health.degraded || foreign_publisher ? "DEGRADED" : "ok", aborted,
-                cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
-                cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occluded)),
-                s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
-                static_cast<unsigned long long>(s.health.deadline_misses),
-                static_cast<unsigned long long>(s.health.missed_cycles));
-  std::string line = head;
-  if (foreign_publisher) line.insert(line.size() - 2, " another publisher on the topics");
-  if (s.health.phase_lock && !s.health.phase_locked) {
-    line.insert(line.size() - 2, " phase unlocked");  // Before " |".
-  }
-  if (s.health.knowledge_filter) {
-    char part[64];
-    std::snprintf(part, sizeof(part), " filtered %.4f m^3 (%d blobs)", s.health.filtered_m3,
-                  s.health.filtered_blobs);
-    line.insert(line.size() - 2, part);  // Before " |".
-  }
-  if (tracking != nullptr) {
-    // The last tracked cycle's, which may be a cycle or two behind.
-    const TrackingStats t = tracking->stats();
-    char part[96];
-    std::snprintf(part, sizeof(part), " tracks %d tracking %.1f ms", t.tracks, t.last_ms);
-    line.insert(line.size() - 2, part);  // Before " |".
-    if (t.skipped > 0) {
-      line.insert(line.size() - 2, std::string(" skipped ").append(std::to_string(t.skipped)));
-    }
-    // Snapshots of updates that did not refine far enough to track on: at a
-    // depth the machine cannot finish within the deadline, most of them.
-    if (t.untracked > 0) {
-      line.insert(line.size() - 2, std::string(" untracked ")
-                                       .append(std::to_string(t.untracked))
-                                       .append(" of ")
-                                       .append(std::to_string(t.untracked + t.cycles)));
-    }
-  }
-  for (const pipeline::CameraHealth& c : s.health.cameras) {
-    char cam[128];
-    std::snprintf(cam, sizeof(cam), " %s %s %.0f fps", c.name.c_str(), StateName(c.state), c.fps);
-    line += cam;
-    if (c.margin_m > 0.0) {
-      std::snprintf(cam, sizeof(cam), " margin %.1f cm", c.margin_m * 100.0);
-      line += cam;
-    }
-    if (c.learning) line += " learning";  // The background: all foreground meanwhile.
-    if (c.corrupt > 0) line += std::string(" corrupt ").append(std::to_string(c.corrupt));
-    // Transport trouble of a GigE Vision camera: lost packets, host too slow.
-    if (c.failed > 0) line += std::string(" failed ").append(std::to_string(c.failed));
-    if (c.underruns > 0) line += std::string(" underruns ").append(std::to_string(c.underruns));
-    if (c.fault != 0) {
-      line += std::string(" (").append(ToString(static_cast<capture::CameraFault>(c.fault))) + ")";
-    }
-  }
-  return line;
 }
 
 }  // namespace
@@ -359,7 +270,7 @@ int RunPipeline(const Config& config, double duration_s) {
                                                  return h.state == pipeline::CameraState::kStarting;
                                                });
         if (cameras_open || now - start >= kReadyWait) {
-          const std::string line = HealthLine(*s, tracking.get(), other_publishers > 0);
+          const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0);
           if (!cameras_open) log::Warn("ready without every camera: {}", line);
           notifier.Ready();
           watchdog.SetStatus(line);
@@ -370,7 +281,7 @@ int RunPipeline(const Config& config, double duration_s) {
     if (now >= next_report) {
       next_report += std::chrono::seconds(1);
       if (const auto s = pipeline.Latest()) {
-        const std::string line = HealthLine(*s, tracking.get(), other_publishers > 0);
+        const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0);
         LogHealth(*s, line, other_publishers > 0);
         watchdog.SetStatus(line);
       }
@@ -382,7 +293,8 @@ int RunPipeline(const Config& config, double duration_s) {
   if (publish_stage) publish_stage->Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
-    LogHealth(*s, HealthLine(*s, tracking.get(), other_publishers > 0), other_publishers > 0);
+    LogHealth(*s, HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0),
+              other_publishers > 0);
   }
   log::Info("stopped");
   return 0;

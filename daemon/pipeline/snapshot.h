@@ -30,7 +30,8 @@ struct CameraHealth {
   std::uint64_t drops = 0;    ///< Frames overwritten before use (latest wins).
   std::uint64_t corrupt = 0;  ///< Frames counted and skipped as unreadable.
   /// Image fault (capture::CameraFault: 0 none, 1 frozen, 2 black, 3 saturated,
-  /// 4 moved, 5 unlearned); a faulty camera sees nothing, as a stale one.
+  /// 4 moved, 5 unlearned, 6 blocked); a faulty camera sees nothing, as a
+  /// stale one.
   std::uint8_t fault = 0;
   /// The frame used is one the background model was still learning from
   /// (all foreground: this camera certifies nothing free through it).
