@@ -127,13 +127,16 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
   {
     // Best effort, volatile, no deadline: requests nothing a writer could
     // fail to offer, so it matches every writer of the topic, reliable or
-    // not. Its own participant's writer is ignored, so that the daemon's own
-    // status samples are not delivered to it every cycle (it never reads).
+    // not. Its own participant's writers are ignored, so that the daemon's
+    // own samples are not delivered to it every cycle (it never reads);
+    // another's are, into a history of one, only while there is one.
     dds::Qos qos;
     SetCommon(qos);
     dds_qset_reliability(qos.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+    dds_qset_history(qos.get(), DDS_HISTORY_KEEP_LAST, 1);
     dds_qset_ignorelocal(qos.get(), DDS_IGNORELOCAL_PARTICIPANT);
     status_watch_ = dds::Reader(participant_, status_topic_entity_, qos.get());
+    occupancy_watch_ = dds::Reader(participant_, occupancy_topic_entity_, qos.get());
   }
   if (config.tracks) {
     tracks_topic_entity_ = dds::Topic(participant_, &hullguard_Tracks_desc, tracks_topic_);
@@ -154,20 +157,31 @@ bool DdsPublisher::TooOld(std::int64_t stamp_ns) {
   return true;
 }
 
-int DdsPublisher::CheckOtherPublishers() {
-  if (!status_watch_) return 0;
+namespace {
+
+/// Writers matched by `watch` other than `own`; -1 when Cyclone DDS cannot say.
+int OtherWriters(const dds::Reader& watch, const dds::Writer& own_writer) {
   dds_instance_handle_t own = 0;
-  if (dds_get_instance_handle(status_writer_.handle(), &own) < 0) return 0;
+  if (dds_get_instance_handle(own_writer.handle(), &own) < 0) return -1;
   std::array<dds_instance_handle_t, 16> matched{};
   const dds_return_t n =
-      dds_get_matched_publications(status_watch_.handle(), matched.data(), matched.size());
-  if (n < 0) return 0;
+      dds_get_matched_publications(watch.handle(), matched.data(), matched.size());
+  if (n < 0) return -1;
   // n may exceed what fits: every writer beyond the array is another's.
   int others = std::max(0, static_cast<int>(n) - static_cast<int>(matched.size()));
   for (std::size_t i = 0; i < std::min<std::size_t>(static_cast<std::size_t>(n), matched.size());
        ++i) {
     others += matched[i] != own ? 1 : 0;
   }
+  return others;
+}
+
+}  // namespace
+
+int DdsPublisher::CheckOtherPublishers() {
+  if (!status_watch_ || !occupancy_watch_) return 0;
+  const int others = std::max({0, OtherWriters(status_watch_, status_writer_),
+                               OtherWriters(occupancy_watch_, occupancy_writer_)});
   other_publishers_.store(others > 0, std::memory_order_relaxed);
   return others;
 }

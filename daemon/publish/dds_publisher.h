@@ -111,10 +111,11 @@ class DdsPublisher {
     return stale_dropped_.load(std::memory_order_relaxed);
   }
 
-  /// Writers of this publisher's status topic other than its own, on its
-  /// domain: another publisher under the same prefix (a second daemon, or a
-  /// config copied from another cell), whose samples a controller could not
-  /// tell from this one's. 0 when disabled. While it is not 0 every status
+  /// Writers of this publisher's status or occupancy topic other than its
+  /// own, on its domain (the larger of the two counts): another publisher
+  /// under the same prefix (a second daemon, a config copied from another
+  /// cell, or some other tool writing occupancy), whose samples a controller
+  /// could not tell from this one's. 0 when disabled. While it is not 0 every status
   /// sample says degraded. Thread-safe; call it at most every few hundred
   /// milliseconds (it asks Cyclone DDS for the matched writers and updates
   /// the flag Publish() reads).
@@ -143,9 +144,10 @@ class DdsPublisher {
   dds::Writer occupancy_writer_;
   dds::Writer status_writer_;
   dds::Writer tracks_writer_;
-  /// Reads nothing: its matched writers tell CheckOtherPublishers() who else
-  /// writes the status topic.
+  /// Read nothing: their matched writers tell CheckOtherPublishers() who
+  /// else writes the status and the occupancy topics.
   dds::Reader status_watch_;
+  dds::Reader occupancy_watch_;
   std::chrono::nanoseconds max_age_;
   std::atomic<bool> other_publishers_{false};
   std::atomic<std::uint64_t> stale_dropped_{0};

@@ -423,6 +423,31 @@ TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
     }
     EXPECT_EQ(others, 1);
   }
+  for (int i = 0; i < 200 && others != 0; ++i) {
+    std::this_thread::sleep_for(milliseconds(25));
+    others = publisher.CheckOtherPublishers();
+  }
+  EXPECT_EQ(others, 0);
+  // So does a writer of the occupancy topic alone (a tool replaying
+  // occupancy under the daemon's prefix), which a controller would take for
+  // the daemon's: noticed, and its samples make the status degraded.
+  {
+    dds::Participant participant(static_cast<dds_domainid_t>(TestDomain()));
+    dds::Topic topic(participant, &hullguard_Occupancy_desc, OccupancyTopicName("twice"));
+    dds::Writer writer(participant, topic, OccupancyWriterQos(30.0).get());
+    others = 0;
+    for (int i = 0; i < 200 && others == 0; ++i) {
+      std::this_thread::sleep_for(milliseconds(25));
+      others = publisher.CheckOtherPublishers();
+    }
+    EXPECT_EQ(others, 1);
+    while (sub.TakeStatus(&st)) {
+    }
+    s = MakeSnapshot(2, 10, 0);
+    s.health.degraded = false;
+    ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
+    EXPECT_TRUE(st.header.degraded);
+  }
 }
 
 // Publisher mode for the `hullguard echo` test: 20 Hz for `seconds_to_run`.
