@@ -95,6 +95,16 @@ class CameraParser {
     // Full HD unless given.
     Check([&] { camera.width = ParseSide("width", 1920); });
     Check([&] { camera.height = ParseSide("height", 1080); });
+    Check([&] {
+      if (camera.width > 0 && camera.height > 0 &&
+          !common::ImageFits(camera.width, camera.height)) {
+        throw ConfigError::At(file_, Has("width") ? LineOf(Key("width")) : LineOf(node_),
+                              Path("width") + ": an image of " + std::to_string(camera.width) +
+                                  " x " + std::to_string(camera.height) +
+                                  " pixels is too large (at most 2^20 tiles of 8 x 8 pixels, "
+                                  "about 8000 x 8000)");
+      }
+    });
 
     const bool has_p = Has("P");
     const bool has_krt = Has("K") || Has("R") || Has("t");

@@ -7,6 +7,7 @@
 #include <emmintrin.h>
 
 #include "common/check.h"
+#include "common/limits.h"
 
 namespace hg::silhouette {
 namespace {
@@ -78,8 +79,10 @@ SilhouetteQuadtree::SilhouetteQuadtree(int width, int height)
   HG_CHECK(width > 0 && height > 0);
   const std::size_t tiles = static_cast<std::size_t>(tiles_w_) * tiles_h_;
   // Two of sums_'s 21-bit counts are added before one is subtracted (TileSum):
-  // up to 2^20 tiles, an image of about 8000 x 8000 pixels.
-  HG_CHECK(tiles <= (std::size_t{1} << 20));
+  // up to 2^20 tiles, an image of about 8000 x 8000 pixels (the camera
+  // loaders refuse larger ones).
+  HG_CHECK(common::ImageFits(width, height));
+  HG_CHECK(tiles <= static_cast<std::size_t>(common::kMaxImageTiles));
   words_.assign(tiles, 0);
   changed_.assign(tiles, 0);
   valid_.assign(tiles, 0);

@@ -19,35 +19,54 @@ namespace {
 // How the source region of an output pixel is bounded.
 //
 // The map f = K * Distort * K^-1 takes an ideal pinhole pixel position to the
-// distorted (source) image. Where its Jacobian determinant is positive, f is a local
-// diffeomorphism, so it maps the interior of the pixel square S to an open set and
-// every extreme point of the compact set f(S) is the image of a point of the
-// boundary of S: the bounding box of f(S) equals the bounding box of f(boundary S).
-//
-// The boundary is sampled with kSegments segments per edge. Between two samples
-// h apart along an edge curve gamma with |gamma''| <= M, gamma stays within
-// M h^2 / 8 of the chord, so the sampled polyline's box grown by M h^2 / 8 contains
-// f(boundary S). M is estimated from the second differences of the samples
-// (|gamma(s-h) - 2 gamma(s) + gamma(s+h)| ~= |gamma''| h^2). Lens distortion is a
-// low-order polynomial in normalised coordinates, so in pixel units its second
-// derivative is tiny (order |k| r / f, about 1e-2 px/px^2 or less) and varies
-// slowly; the estimate is multiplied by kCurvatureSafety and a fixed kMarginFloor
-// is added on top, which dominates in practice and also absorbs rounding.
-constexpr int kSegments = 8;
-constexpr double kCurvatureSafety = 4.0;
+// distorted (source) image. For an output pixel square S with centre c, the
+// mean value theorem gives, for every p in S and each coordinate i,
+// f_i(p) = f_i(c) + grad f_i(xi) . (p - c) with xi on the segment from c to p,
+// inside S. So f_i(S) lies within f_i(c) +- 0.5 (|J_i0| + |J_i1|), where J is
+// an interval enclosure of f's Jacobian over S (interval arithmetic over the
+// normalised coordinates of S, a box around K^-1 S). This holds for any
+// polynomial distortion, folded or not; it is tight to second order (the
+// Jacobian varies by about |k| r / f per pixel), so the region is the
+// pixel's image, rounded out. Rounding of the double arithmetic is covered by
+// kMarginFloor plus a relative margin.
 constexpr double kMarginFloor = 0.01;  // px
+constexpr double kRelativeMargin = 1e-9;
 
-// Beyond the radius where the polynomial model folds over (Jacobian determinant
-// <= 0) it no longer describes the lens; pixels there are treated as unseen. The
-// determinant is only known at samples, so it must clear kMinJacobian by twice its
-// spread over the pixel's samples, which bounds how far it can dip in between.
+// Where the polynomial model folds over (Jacobian determinant <= 0) it no
+// longer describes a lens; pixels there are treated as unseen. A pixel counts
+// as unfolded when a lower bound of the determinant over its square (the same
+// interval arithmetic) is at least kMinJacobian.
 constexpr double kMinJacobian = 0.05;
 
-/// f and its Jacobian determinant at one output (pinhole) position.
-struct Sample {
-  double x = 0;
-  double y = 0;
-  double det = 0;
+/// A closed interval of reals; arithmetic encloses every result of its
+/// operands' members (up to the rounding covered by the margins above).
+struct Interval {
+  double lo = 0;
+  double hi = 0;
+
+  static Interval Of(double a, double b) { return {std::min(a, b), std::max(a, b)}; }
+  [[nodiscard]] double Magnitude() const { return std::max(std::abs(lo), std::abs(hi)); }
+  friend Interval operator+(Interval a, Interval b) { return {a.lo + b.lo, a.hi + b.hi}; }
+  friend Interval operator-(Interval a, Interval b) { return {a.lo - b.hi, a.hi - b.lo}; }
+  friend Interval operator+(double a, Interval b) { return {a + b.lo, a + b.hi}; }
+  friend Interval operator*(double a, Interval b) { return Of(a * b.lo, a * b.hi); }
+  friend Interval operator*(Interval a, Interval b) {
+    const double p0 = a.lo * b.lo, p1 = a.lo * b.hi, p2 = a.hi * b.lo, p3 = a.hi * b.hi;
+    return {std::min({p0, p1, p2, p3}), std::max({p0, p1, p2, p3})};
+  }
+  /// {x^2 : x in a}: tighter than a * a when a holds 0.
+  [[nodiscard]] Interval Square() const {
+    const double l = lo * lo, h = hi * hi;
+    if (lo <= 0 && hi >= 0) return {0.0, std::max(l, h)};
+    return Of(l, h);
+  }
+};
+
+/// Where one output pixel's points may come from in the source image.
+struct Region {
+  double x_min = 0, x_max = 0, y_min = 0, y_max = 0;  // Source pixel coordinates.
+  double det_lo = 0;  ///< Lower bound of the Jacobian determinant over the pixel.
+  bool finite = true;
 };
 
 class DistortionMap {
@@ -55,26 +74,57 @@ class DistortionMap {
   explicit DistortionMap(const geometry::CameraModel& camera)
       : K_(camera.K), K_inv_(camera.K.inverse()), d_(camera.distortion) {}
 
-  [[nodiscard]] Sample At(double u, double v) const {
-    const double x = K_inv_(0, 0) * u + K_inv_(0, 1) * v + K_inv_(0, 2);
-    const double y = K_inv_(1, 1) * v + K_inv_(1, 2);
+  /// The source region of output pixel (u, v), the square [u - 0.5, u + 0.5] x
+  /// [v - 0.5, v + 0.5].
+  [[nodiscard]] Region PixelRegion(int u, int v) const {
     const double k1 = d_[0], k2 = d_[1], p1 = d_[2], p2 = d_[3], k3 = d_[4];
-    const double r2 = x * x + y * y;
-    const double radial = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3));
-    const double dx = x * radial + 2.0 * p1 * x * y + p2 * (r2 + 2.0 * x * x);
-    const double dy = y * radial + p1 * (r2 + 2.0 * y * y) + 2.0 * p2 * x * y;
-    // d(radial)/dx = 2 x g, d(radial)/dy = 2 y g.
-    const double g = k1 + r2 * (2.0 * k2 + 3.0 * k3 * r2);
-    const double j00 = radial + 2.0 * x * x * g + 2.0 * p1 * y + 6.0 * p2 * x;
-    const double j01 = 2.0 * x * y * g + 2.0 * p1 * x + 2.0 * p2 * y;
-    const double j10 = 2.0 * x * y * g + 2.0 * p1 * x + 2.0 * p2 * y;
-    const double j11 = radial + 2.0 * y * y * g + 6.0 * p1 * y + 2.0 * p2 * x;
-    // K's 2x2 block and its inverse cancel in the determinant of K D K^-1.
-    Sample s;
-    s.x = K_(0, 0) * dx + K_(0, 1) * dy + K_(0, 2);
-    s.y = K_(1, 1) * dy + K_(1, 2);
-    s.det = j00 * j11 - j01 * j10;
-    return s;
+    // f at the centre.
+    const double xc = K_inv_(0, 0) * u + K_inv_(0, 1) * v + K_inv_(0, 2);
+    const double yc = K_inv_(1, 1) * v + K_inv_(1, 2);
+    const double r2c = xc * xc + yc * yc;
+    const double radial_c = 1.0 + r2c * (k1 + r2c * (k2 + r2c * k3));
+    const double dxc = xc * radial_c + 2.0 * p1 * xc * yc + p2 * (r2c + 2.0 * xc * xc);
+    const double dyc = yc * radial_c + p1 * (r2c + 2.0 * yc * yc) + 2.0 * p2 * xc * yc;
+    const double fu = K_(0, 0) * dxc + K_(0, 1) * dyc + K_(0, 2);
+    const double fv = K_(1, 1) * dyc + K_(1, 2);
+
+    // The normalised coordinates of the square: affine in (u, v), so their
+    // ranges are those over its corners.
+    const double hx = 0.5 * (std::abs(K_inv_(0, 0)) + std::abs(K_inv_(0, 1)));
+    const double hy = 0.5 * std::abs(K_inv_(1, 1));
+    const Interval x{xc - hx, xc + hx};
+    const Interval y{yc - hy, yc + hy};
+    // The distortion's Jacobian over them (as in the point form: d(radial)/dx
+    // = 2 x g, d(radial)/dy = 2 y g).
+    const Interval x2 = x.Square(), y2 = y.Square(), xy = x * y, r2 = x2 + y2;
+    const Interval radial = 1.0 + r2 * (k1 + r2 * (k2 + k3 * r2));
+    const Interval g = k1 + r2 * (2.0 * k2 + (3.0 * k3) * r2);
+    const Interval j00 = radial + 2.0 * (x2 * g) + (2.0 * p1) * y + (6.0 * p2) * x;
+    const Interval j01 = 2.0 * (xy * g) + (2.0 * p1) * x + (2.0 * p2) * y;  // == j10
+    const Interval j11 = radial + 2.0 * (y2 * g) + (6.0 * p1) * y + (2.0 * p2) * x;
+    // In pixels: J = K2 * Jd * K2^-1, K2 the upper-left 2x2 block of K.
+    const double a = K_inv_(0, 0), b = K_inv_(0, 1), c = K_inv_(1, 1);
+    const Interval m00 = a * j00, m01 = b * j00 + c * j01;
+    const Interval m10 = a * j01, m11 = b * j01 + c * j11;
+    const Interval J00 = K_(0, 0) * m00 + K_(0, 1) * m10;
+    const Interval J01 = K_(0, 0) * m01 + K_(0, 1) * m11;
+    const Interval J10 = K_(1, 1) * m10;
+    const Interval J11 = K_(1, 1) * m11;
+    const double half_u = 0.5 * (J00.Magnitude() + J01.Magnitude());
+    const double half_v = 0.5 * (J10.Magnitude() + J11.Magnitude());
+    const double margin_u = kMarginFloor + kRelativeMargin * (std::abs(fu) + half_u);
+    const double margin_v = kMarginFloor + kRelativeMargin * (std::abs(fv) + half_v);
+
+    Region r;
+    r.x_min = fu - half_u - margin_u;
+    r.x_max = fu + half_u + margin_u;
+    r.y_min = fv - half_v - margin_v;
+    r.y_max = fv + half_v + margin_v;
+    // K's 2x2 block and its inverse cancel in the determinant.
+    r.det_lo = (j00 * j11 - j01.Square()).lo;
+    r.finite = std::isfinite(r.x_min) && std::isfinite(r.x_max) && std::isfinite(r.y_min) &&
+               std::isfinite(r.y_max) && std::isfinite(r.det_lo);
+    return r;
   }
 
  private:
@@ -83,50 +133,13 @@ class DistortionMap {
   std::array<double, 5> d_;
 };
 
-/// Accumulates one output pixel's boundary samples.
-struct RegionBounds {
-  double x_min = std::numeric_limits<double>::infinity();
-  double x_max = -std::numeric_limits<double>::infinity();
-  double y_min = std::numeric_limits<double>::infinity();
-  double y_max = -std::numeric_limits<double>::infinity();
-  double det_min = std::numeric_limits<double>::infinity();
-  double det_max = -std::numeric_limits<double>::infinity();
-  double max_second_difference = 0;  // px
-  bool finite = true;
-
-  void Add(const Sample& s) {
-    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.det)) {
-      finite = false;
-    }
-    x_min = std::min(x_min, s.x);
-    x_max = std::max(x_max, s.x);
-    y_min = std::min(y_min, s.y);
-    y_max = std::max(y_max, s.y);
-    AddDet(s.det);
-  }
-  void AddDet(double det) {
-    det_min = std::min(det_min, det);
-    det_max = std::max(det_max, det);
-  }
-  /// One edge, kSegments + 1 samples in order along it.
-  void AddEdge(const Sample* const* edge) {
-    for (int i = 0; i <= kSegments; ++i) {
-      Add(*edge[i]);
-    }
-    for (int i = 1; i < kSegments; ++i) {
-      const double ddx = edge[i - 1]->x - 2.0 * edge[i]->x + edge[i + 1]->x;
-      const double ddy = edge[i - 1]->y - 2.0 * edge[i]->y + edge[i + 1]->y;
-      max_second_difference = std::max(max_second_difference, std::sqrt(ddx * ddx + ddy * ddy));
-    }
-  }
-};
-
 }  // namespace
 
 ConservativeUndistorter::ConservativeUndistorter(const geometry::CameraModel& camera)
     : width_(camera.width), height_(camera.height), source_(camera.width, camera.height) {
   HG_CHECK(width_ > 0 && height_ > 0);
-  HG_CHECK(width_ < kOutside && height_ < kOutside);
+  // The largest source pixel index, 65534, stays below kOutside.
+  HG_CHECK(width_ <= kOutside && height_ <= kOutside);
   const int w = width_;
   const int h = height_;
   rects_.resize(static_cast<std::size_t>(w) * h);
@@ -145,61 +158,16 @@ ConservativeUndistorter::ConservativeUndistorter(const geometry::CameraModel& ca
   }
 
   const DistortionMap map(camera);
-  constexpr double kStep = 1.0 / kSegments;
-  // Samples on the horizontal pixel boundary lines above (top) and below (bottom)
-  // the current output row, and on the vertical boundary lines between them
-  // (interior samples only; their end points are in top and bottom). Neighbouring
-  // pixels share these samples.
-  const int line_samples = kSegments * w + 1;
-  std::vector<Sample> top(line_samples);
-  std::vector<Sample> bottom(line_samples);
-  std::vector<Sample> vertical(static_cast<std::size_t>(w + 1) * (kSegments - 1));
-  auto fill_line = [&](double y, std::vector<Sample>* line) {
-    for (int k = 0; k < line_samples; ++k) {
-      (*line)[k] = map.At(-0.5 + k * kStep, y);
-    }
-  };
-  fill_line(-0.5, &top);
-
-  const Sample* edge[kSegments + 1];
   for (int v = 0; v < h; ++v) {
-    fill_line(v + 0.5, &bottom);
-    for (int i = 0; i <= w; ++i) {
-      for (int j = 1; j < kSegments; ++j) {
-        vertical[static_cast<std::size_t>(i) * (kSegments - 1) + (j - 1)] =
-            map.At(i - 0.5, v - 0.5 + j * kStep);
-      }
-    }
     for (int u = 0; u < w; ++u) {
-      RegionBounds b;
-      const int k0 = kSegments * u;
-      for (int j = 0; j <= kSegments; ++j) {
-        edge[j] = &top[k0 + j];
-      }
-      b.AddEdge(edge);
-      for (int j = 0; j <= kSegments; ++j) {
-        edge[j] = &bottom[k0 + j];
-      }
-      b.AddEdge(edge);
-      for (int side = 0; side < 2; ++side) {
-        const int i = u + side;
-        edge[0] = &top[static_cast<std::size_t>(kSegments) * i];
-        for (int j = 1; j < kSegments; ++j) {
-          edge[j] = &vertical[static_cast<std::size_t>(i) * (kSegments - 1) + (j - 1)];
-        }
-        edge[kSegments] = &bottom[static_cast<std::size_t>(kSegments) * i];
-        b.AddEdge(edge);
-      }
-      b.AddDet(map.At(u, v).det);
-
-      const double margin = kMarginFloor + kCurvatureSafety * b.max_second_difference / 8.0;
+      const Region b = map.PixelRegion(u, v);
       // Source pixel s covers [s - 0.5, s + 0.5), so the pixels touching the closed
       // box [lo, hi] are floor(lo + 0.5) .. floor(hi + 0.5).
-      const double su0 = std::floor(b.x_min - margin + 0.5);
-      const double su1 = std::floor(b.x_max + margin + 0.5);
-      const double sv0 = std::floor(b.y_min - margin + 0.5);
-      const double sv1 = std::floor(b.y_max + margin + 0.5);
-      const bool folded = !(b.det_min - 2.0 * (b.det_max - b.det_min) >= kMinJacobian);
+      const double su0 = std::floor(b.x_min + 0.5);
+      const double su1 = std::floor(b.x_max + 0.5);
+      const double sv0 = std::floor(b.y_min + 0.5);
+      const double sv1 = std::floor(b.y_max + 0.5);
+      const bool folded = !(b.det_lo >= kMinJacobian);
       // Written so that NaN lands on the outside branch.
       const bool inside = b.finite && su0 >= 0 && sv0 >= 0 && su1 <= w - 1 && sv1 <= h - 1;
       SourceRect& r = rects_[static_cast<std::size_t>(v) * w + u];
@@ -210,7 +178,6 @@ ConservativeUndistorter::ConservativeUndistorter(const geometry::CameraModel& ca
              static_cast<std::uint16_t>(su1), static_cast<std::uint16_t>(sv1)};
       }
     }
-    std::swap(top, bottom);
   }
   BuildTileRects();
 }

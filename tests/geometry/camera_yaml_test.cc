@@ -305,6 +305,8 @@ TEST(CameraYamlLookAtTest, Errors) {
   ExpectError(Replace(base, "K: [500,", "K: [-500,"), 5, {"cameras[0].K: focal lengths"});
   ExpectError(Replace(base, "K: [500,", "K: [5101,"), 5,
               {"cameras[0].K: focal lengths more than 10 times apart (got 5101, 510)"});
+  ExpectError(Replace(Replace(base, "width: 640", "width: 9000"), "height: 480", "height: 8000"), 3,
+              {"cameras[0].width: an image of 9000 x 8000 pixels is too large"});
   ExpectError(Replace(base, "K: [500,", "K: [50,"), 5,
               {"cameras[0].K: focal lengths more than 10 times apart (got 50, 510)"});
   ExpectError(Replace(Replace(base, "K: [500,", "K: [3,"), "510,", "6,"), 5,

@@ -242,6 +242,51 @@ TEST(ConservativeUndistorterTest, FoldedModelIsForeground) {
   EXPECT_EQ(out.At(w / 2, h / 2), 0);
 }
 
+// A fold too narrow for samples of the pixel's edges: with these
+// coefficients the determinant of the model's Jacobian is -0.27 at pinhole
+// point (1.734375, 1.902344), inside the middle pixel of a 5 x 5 image, while
+// it is positive at every point of a 9 x 9 grid on the pixel's edges and at
+// its centre. A lower bound over the whole pixel sees it.
+TEST(ConservativeUndistorterTest, AFoldInsideOnePixelIsForeground) {
+  const CameraModel cam =
+      MakeCamera(5, 5, 1.54450322, 1.54450322, 2, 2, {-22.6299903, 90.2068094, 0, 0, -119.254981});
+  // The fold is there (the determinant from the same formulas as the library's
+  // point form).
+  const Eigen::Vector3d n = cam.K.inverse() * Eigen::Vector3d(1.734375, 1.902344, 1.0);
+  const double x = n.x(), y = n.y(), r2 = x * x + y * y;
+  const auto& d = cam.distortion;
+  const double radial = 1 + r2 * (d[0] + r2 * (d[1] + r2 * d[4]));
+  const double g = d[0] + r2 * (2 * d[1] + 3 * d[4] * r2);
+  const double det =
+      (radial + 2 * x * x * g) * (radial + 2 * y * y * g) - 4 * x * x * y * y * g * g;
+  ASSERT_LT(det, -0.2);
+  ConservativeUndistorter undistorter(cam);
+  ImageU8 out;
+  undistorter.Apply(ImageU8(5, 5, 0).View(), 0, &out);
+  EXPECT_EQ(out.At(2, 2), 255);
+}
+
+// Images up to the loader's 65535 pixels a side: the largest source index,
+// 65534, is a region's, not the "outside" mark.
+TEST(ConservativeUndistorterTest, TheWidestImage) {
+  const int w = 65535;
+  const CameraModel cam = MakeCamera(w, 3, 30000, 30000, 32767, 1, {-0.01, 0, 0, 0, 0});
+  ConservativeUndistorter undistorter(cam);
+  ImageU8 source(w, 3, 0);
+  source.At(w - 1, 1) = 255;
+  ImageU8 out;
+  undistorter.Apply(source.View(), 0, &out);
+  EXPECT_EQ(out.At(w / 2, 1), 0);
+  // Barrel distortion pulls the last column inwards (from about column
+  // 65150): background.
+  EXPECT_EQ(out.At(w - 1, 1), 0);
+  const int from = PixelOf(DistortPixel(cam, Eigen::Vector2d(w - 1, 1)).x());
+  ASSERT_LT(from, w - 300);
+  source.At(from, 1) = 255;
+  undistorter.Apply(source.View(), 0, &out);
+  EXPECT_EQ(out.At(w - 1, 1), 255);
+}
+
 TEST(ConservativeUndistorterTest, ReusesOutputOfTheRightSize) {
   const int w = 64;
   const int h = 48;
