@@ -38,6 +38,10 @@
 namespace hg::app {
 namespace {
 
+/// Volume of a small child (m^3): a knowledge filter dropping blobs larger than
+/// this could drop a person (a notice says so).
+constexpr double kSmallestPersonM3 = 0.02;
+
 namespace fs = std::filesystem;
 using common::ConfigError;
 
@@ -162,7 +166,8 @@ const Field<OctreeSettings> kOctreeFields[] = {
                 "smaller than this volume (m^3) is dropped (reported free) unless it touches "
                 "occluded space or a face of the bounds, where it may be part of something "
                 "larger. 0 turns it off; it frees space the cameras did not certify, so set it "
-                "only where such blobs are known noise.",
+                "only where such blobs are known noise. Above 0.02 m^3 (a small child) hullguardd "
+                "warns at start and --check-config.",
      .limits = {0, kInf}},
     {.key = "publish_depth",
      .member = &OctreeSettings::publish_depth,
@@ -1715,6 +1720,16 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   ReadSection<ThreadsConfig>(r, sections, "threads", kThreadsFields, &config.threads);
   ReadSection<MotionConfig>(r, sections, "motion", kMotionFields, &config.motion);
   config.max_speed_line = key_line("motion", "max_speed_mps");
+  if (config.octree.knowledge_filter_m3 > kSmallestPersonM3) {
+    char notice[320];
+    std::snprintf(notice, sizeof(notice),
+                  "octree.knowledge_filter_m3: %g m^3 is more than a small child's volume (about "
+                  "%g m^3): a child the cameras see whole, away from occluded space, would be "
+                  "dropped and reported free; keep it below",
+                  config.octree.knowledge_filter_m3, kSmallestPersonM3);
+    config.notices.emplace_back(
+        ConfigError::At(r.file(), key_line("octree", "knowledge_filter_m3"), notice).what());
+  }
   if (const int line = key_line("motion", "min_camera_distance_m"); line != 0) {
     config.notices.emplace_back(
         ConfigError::At(r.file(), line,

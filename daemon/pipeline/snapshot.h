@@ -117,8 +117,12 @@ struct OccupancySnapshot {
   std::vector<std::uint8_t> root_levels;
   common::Box3 bounds;
   int depth = 0;                  ///< Publishing grid: 2^depth cells per axis.
-  std::vector<GridRun> occupied;  ///< Cells that may hold a person (seen as foreground).
-  std::vector<GridRun> occluded;  ///< Cells no camera sees (and not occupied).
+  /// Cells that may hold a person: seen as foreground, or not worked out (an
+  /// aborted or settled update's cells).
+  std::vector<GridRun> occupied;
+  /// Not occupied, and not certified free by any camera: unseen (behind
+  /// obstacles, outside the views) or only partly seen.
+  std::vector<GridRun> occluded;
 
   /// Number of cells the runs cover.
   [[nodiscard]] static std::size_t Cells(const std::vector<GridRun>& runs) {

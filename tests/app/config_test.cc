@@ -1204,6 +1204,20 @@ TEST(ConfigTrackingTest, ReferenceDocListsTheSection) {
   }
 }
 
+// A knowledge filter that could drop a small child is accepted (it is the
+// integrator's choice) but said, with its line.
+TEST(ConfigTest, AKnowledgeFilterAboveAChildsVolumeIsNoticed) {
+  const Config c = Parse(Replace(kFull, "knowledge_filter_m3: 0.002", "knowledge_filter_m3: 0.05"));
+  ASSERT_EQ(c.notices.size(), 2u);  // And motion.min_camera_distance_m.
+  EXPECT_NE(c.notices[0].find("t.yaml:3: octree.knowledge_filter_m3: 0.05 m^3 is more than a small "
+                              "child's volume (about 0.02 m^3)"),
+            std::string::npos)
+      << c.notices[0];
+  EXPECT_EQ(Parse(Replace(kFull, "knowledge_filter_m3: 0.002", "knowledge_filter_m3: 0.02"))
+                .notices.size(),
+            1u);
+}
+
 // A camera inside an obstacle mesh (its mount modelled with it) runs failed
 // (blocked), seeing nothing: --check-config says so, with the camera's line,
 // before a deployment.
