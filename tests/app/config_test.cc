@@ -1230,14 +1230,13 @@ TEST(ConfigTest, ACameraInsideAnObstacleIsNoticed) {
                                      "v 0.05 0.05 -0.95\nv -0.05 0.05 -0.95\n"
                                      "f 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\n"
                                      "f 2 3 7\nf 2 7 6\nf 3 4 8\nf 3 8 7\nf 4 1 5\nf 4 5 8\n");
-  const std::string two_cameras = std::string(kMinimal) + R"(  - name: b
-    width: 64
-    height: 48
-    K: [50, 0, 31.5, 0, 50, 23.5, 0, 0, 1]
-    R: [1, 0, 0, 0, 1, 0, 0, 0, 1]
-    t: [0, 0, 3]
-    source: {type: aravis, device: cam-b}
-)";
+  // Camera b: a's entry 2 m further back.
+  const std::string a_entry =
+      std::string(kMinimal).substr(std::string(kMinimal).find("  - name: a"));
+  const std::string two_cameras =
+      std::string(kMinimal) +
+      Replace(Replace(Replace(a_entry, "name: a", "name: b"), "t: [0, 0, 1]", "t: [0, 0, 3]"),
+              "cam-a", "cam-b");
   EXPECT_TRUE(BlockedCameraNotices(Parse(two_cameras)).empty());
   const std::vector<std::string> notices =
       BlockedCameraNotices(Parse(two_cameras + "obstacles:\n  - file: " + mesh + "\n"));
