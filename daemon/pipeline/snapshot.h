@@ -116,7 +116,7 @@ struct OccupancySnapshot {
   /// for the whole cell. Empty: not known.
   std::vector<std::uint8_t> root_levels;
   common::Box3 bounds;
-  int depth = 0;                  ///< Publishing grid: 2^depth cells per axis.
+  int depth = 0;  ///< Publishing grid: 2^depth cells per axis.
   /// Cells that may hold a person: seen as foreground, or not worked out (an
   /// aborted or settled update's cells).
   std::vector<GridRun> occupied;
