@@ -39,6 +39,8 @@ constexpr int kAdaptInterleave = 8;
 /// Gain histogram: ratios in 1/256, up to 4.
 constexpr int kGainBins = 1024;
 constexpr int kMinGainQ8 = 16;
+/// Ratios within this share of the last gain outvote the others (EstimateGainQ8).
+constexpr int kGainWindowDivisor = 16;  // 1/16: about 6 %.
 /// About this many pixels are sampled for the gain.
 constexpr int kGainSampleTarget = 8192;
 /// Learning measures the noise over at most this many frames (uint16 sums).
@@ -437,7 +439,7 @@ void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common
     return;
   }
   if (options_.compensate_gain) {
-    const int q = EstimateGainQ8(frame, sample_reference_.data(), /*all=*/false);
+    const int q = EstimateGainQ8(frame, sample_reference_.data(), /*all=*/false, gain_q8_);
     // Too few pixels far from foreground to measure: keep the last gain.
     if (q > 0) gain_q8_ = q;
     gain_ = gain_q8_ / 256.0;
@@ -455,7 +457,7 @@ void BackgroundModel::GatherSample(std::vector<std::uint16_t>* out) const {
 }
 
 int BackgroundModel::EstimateGainQ8(const std::uint8_t* frame, const std::uint16_t* reference,
-                                    bool all) {
+                                    bool all, int near_q8) {
   std::fill(gain_histogram_.begin(), gain_histogram_.end(), 0);
   const int c = channels_;
   const auto min_sum = static_cast<std::uint32_t>(c * kMinRatioLevel * 256);
@@ -482,14 +484,27 @@ int BackgroundModel::EstimateGainQ8(const std::uint8_t* frame, const std::uint16
     ++gain_histogram_[std::min<std::uint32_t>(ratio, kGainBins - 1)];
     ++count;
   }
-  if (count < std::max<int>(16, static_cast<int>(sample_pixels_.size() / 64))) return 0;
-  const int half = (count + 1) / 2;
-  int cumulative = 0;
-  for (int bin = 0; bin < kGainBins; ++bin) {
-    cumulative += static_cast<int>(gain_histogram_[bin]);
-    if (cumulative >= half) return std::max(bin, kMinGainQ8);
+  const int enough = std::max<int>(16, static_cast<int>(sample_pixels_.size() / 64));
+  if (count < enough) return 0;
+  // The median of the bins [lo, hi] holding `n` samples.
+  auto median = [&](int lo, int hi, int n) {
+    const int half = (n + 1) / 2;
+    int cumulative = 0;
+    for (int bin = lo; bin <= hi; ++bin) {
+      cumulative += static_cast<int>(gain_histogram_[bin]);
+      if (cumulative >= half) return std::max(bin, kMinGainQ8);
+    }
+    return std::max(hi, kMinGainQ8);
+  };
+  if (near_q8 > 0) {
+    const int reach = std::max(1, near_q8 / kGainWindowDivisor);
+    const int lo = std::max(0, near_q8 - reach);
+    const int hi = std::min(kGainBins - 1, near_q8 + reach);
+    int near = 0;
+    for (int bin = lo; bin <= hi; ++bin) near += static_cast<int>(gain_histogram_[bin]);
+    if (near >= enough) return median(lo, hi, near);
   }
-  return kGainBins - 1;
+  return median(0, kGainBins - 1, count);
 }
 
 void BackgroundModel::Learn(const std::uint8_t* frame) {

@@ -41,7 +41,10 @@ struct BackgroundModelOptions {
   /// Follow global light changes: per frame, one gain (median ratio of frame to
   /// the background learned at start-up, over a sparse sample of pixels that
   /// were far from foreground in the previous frame) scales the background
-  /// before comparing. When too few sample pixels qualify the gain is kept.
+  /// before comparing. Ratios within 6 % of the last gain outvote the others
+  /// whenever at least 1/64 of the sample has one: a change of the light as a
+  /// whole moves every ratio, a person entering only theirs. When too few
+  /// sample pixels qualify the gain is kept.
   bool compensate_gain = true;
 };
 
@@ -144,10 +147,14 @@ class BackgroundModel {
   void FinishTileRow(int ty, const std::uint8_t* frame);
   /// Median ratio of frame to `reference` (8.8, one entry per sample pixel and
   /// channel) in 1/256 over the gain sample; `all`: every sample pixel, else
-  /// only those whose tile was free to adapt last frame. Returns 0 when too few
-  /// sample pixels qualify.
+  /// only those whose tile was free to adapt last frame. With `near_q8` > 0,
+  /// the median of the ratios within kGainWindow of it when enough of them
+  /// are (a person covering most of the view, darker or brighter than the
+  /// background by more than the window, is then outvoted by the background
+  /// still seen instead of setting the gain), else of all of them. Returns 0
+  /// when too few sample pixels qualify.
   [[nodiscard]] int EstimateGainQ8(const std::uint8_t* frame, const std::uint16_t* reference,
-                                   bool all);
+                                   bool all, int near_q8 = 0);
   /// Copies the background at the sample pixels into `out`.
   void GatherSample(std::vector<std::uint16_t>* out) const;
   /// The background of sample i (pixel * channels + channel), 8.8.

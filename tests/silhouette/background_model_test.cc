@@ -760,6 +760,49 @@ TEST(BackgroundModelTest, GainFollowsSuddenGlobalLightChanges) {
   EXPECT_GT(uncompensated.foreground_fraction(), 0.5);
 }
 
+// A person covering most of the view at once (close to the lens, or after a
+// frame gap) must not set the gain: their ratio to the background is not the
+// light's. Here the person's shirt is the background's own texture at half
+// its brightness, the worst case: the median of the ratios became theirs,
+// and every pixel of theirs was background from then on.
+TEST(BackgroundModelTest, APersonCoveringMostOfTheViewDoesNotSetTheGain) {
+  constexpr int kW = 160;
+  constexpr int kH = 120;
+  const common::ImageRgb8 base = Texture(kW, kH, 5);
+  const common::ImageRgb8 shirt = Observe(base, 0.5, 0.0, nullptr);
+  std::mt19937_64 rng(6);
+  BackgroundModel model(kW, kH, BackgroundModelOptions{});
+  common::ImageU8 mask;
+  for (int i = 0; i < 30; ++i) model.Apply(Observe(base, 1.0, 2.0, &rng), &mask);
+  for (const double cover : {0.7, 0.9}) {
+    long long visible = 0;
+    long long missed = 0;
+    for (int f = 0; f < 60; ++f) {
+      common::ImageRgb8 frame = Observe(base, 1.0, 2.0, &rng);
+      for (int v = 0; v < kH; ++v) {
+        for (int u = 0; u < static_cast<int>(cover * kW); ++u) {
+          for (int c = 0; c < 3; ++c) frame.Pixel(u, v)[c] = shirt.Pixel(u, v)[c];
+        }
+      }
+      model.Apply(frame, &mask);
+      for (int v = 0; v < kH; ++v) {
+        for (int u = 0; u < static_cast<int>(cover * kW); ++u) {
+          // Clearly visible: every channel at least twice the threshold off.
+          bool clear = true;
+          for (int c = 0; c < 3; ++c)
+            clear = clear && base.Pixel(u, v)[c] - shirt.Pixel(u, v)[c] >= 50;
+          if (!clear) continue;
+          ++visible;
+          missed += mask.At(u, v) == 0;
+        }
+      }
+    }
+    EXPECT_NEAR(model.gain(), 1.0, 0.03) << cover;
+    EXPECT_GT(visible, 10000) << cover;
+    EXPECT_EQ(missed, 0) << cover << ": of " << visible;
+  }
+}
+
 TEST(BackgroundModelTest, ThresholdsFollowTheLearnedNoise) {
   constexpr int kW = 64;
   constexpr int kH = 48;
