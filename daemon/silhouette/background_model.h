@@ -91,6 +91,9 @@ class BackgroundModel {
   /// Light gain of the last frame relative to the first learning frame (1
   /// always when compensate_gain is false).
   [[nodiscard]] double gain() const { return gain_; }
+  /// The format of the frames learned from or of the background taken up: 3
+  /// (RGB), 1 (grey), 0 before either.
+  [[nodiscard]] int channels() const { return channels_; }
   /// Share of foreground pixels in the last mask, [0, 1].
   [[nodiscard]] double foreground_fraction() const { return foreground_fraction_; }
 

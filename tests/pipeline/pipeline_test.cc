@@ -534,14 +534,23 @@ class StillColourFrames {
     }
   }
   [[nodiscard]] int cameras() const { return static_cast<int>(with_people_.size()); }
-  /// Frame i (at i / 30 s) of every camera, fed to `pipeline`; then one cycle.
-  std::shared_ptr<const OccupancySnapshot> Cycle(Pipeline& pipeline, int i, bool present) {
-    frame_.kind = capture::FrameKind::kRgb;
+  /// Frame i (at i / 30 s) of every camera, fed to `pipeline` (as Mono8 with
+  /// `grey`); then one cycle.
+  std::shared_ptr<const OccupancySnapshot> Cycle(Pipeline& pipeline, int i, bool present,
+                                                 bool grey = false) {
+    frame_.kind = grey ? capture::FrameKind::kMono : capture::FrameKind::kRgb;
     frame_.stamp_ns = 1'000'000'000LL + i * 1'000'000'000LL / 30;
     frame_.index = static_cast<std::uint64_t>(i);
     for (int c = 0; c < cameras(); ++c) {
       (present ? with_people_ : without_)[c].Render(present ? people_ : nobody_, i / 30.0,
                                                     frame_.index, &frame_.rgb);
+      if (grey) {
+        frame_.grey = common::ImageU8(frame_.rgb.width, frame_.rgb.height);
+        for (std::size_t p = 0; p < frame_.grey.pixels.size(); ++p) {
+          const std::uint8_t* rgb = frame_.rgb.pixels.data() + 3 * p;
+          frame_.grey.pixels[p] = static_cast<std::uint8_t>((rgb[0] + rgb[1] + rgb[2]) / 3);
+        }
+      }
       pipeline.Feed(c, frame_);
     }
     return pipeline.Step(frame_.stamp_ns);
@@ -609,6 +618,31 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   // Not merely everything occupied: the saved background certifies free space at once.
   EXPECT_LT(OccupancySnapshot::Cells(s->occupied) + OccupancySnapshot::Cells(s->occluded),
             all_cells / 2);
+
+  // The cameras now deliver grey frames (their pixel format changed): the
+  // kept colour backgrounds are none. With learning at start off, the cameras
+  // see nothing (unlearned) instead of learning the people silently, and the
+  // kept files stay as they were.
+  {
+    const auto before =
+        fs::last_write_time(dir / ("background-" + scene->cameras[0].model.name + ".bin"));
+    PipelineOptions kept_only = options;
+    kept_only.background_dir = dir.string();
+    kept_only.background_start = PipelineOptions::BackgroundStart::kKeptOnly;
+    Pipeline grey(kept_only, FedCameras(*scene), {}, nullptr);
+    std::shared_ptr<const OccupancySnapshot> g;
+    for (int i = 200; i < 200 + options.background.learn_frames + 3; ++i) {
+      g = frames.Cycle(grey, i, /*present=*/true, /*grey=*/true);
+    }
+    ASSERT_NE(g, nullptr);
+    EXPECT_EQ(reported_free(*g), 0);
+    for (const CameraHealth& c : g->health.cameras) {
+      EXPECT_EQ(c.fault, static_cast<std::uint8_t>(capture::CameraFault::kUnlearned)) << c.name;
+      EXPECT_FALSE(c.learning) << c.name;
+    }
+    EXPECT_EQ(fs::last_write_time(dir / ("background-" + scene->cameras[0].model.name + ".bin")),
+              before);
+  }
 
   // Learning afresh with the people present learns them.
   auto fresh = make("");
