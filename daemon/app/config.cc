@@ -455,7 +455,10 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
      .limits = {0, 1}},
     {.key = "shadows_are_foreground",
      .member = &BackgroundConfig::shadows_are_foreground,
-     .meaning = "Count shadows as foreground (conservative: a shadow may hide a person's edge)."},
+     .meaning = "Count shadows as foreground (conservative: a shadow may hide a person's edge). "
+                "false takes a pixel darker than the background by a shadow's ratio, with its "
+                "colour, for a shadow and background: a person's dark clothes too (any colour on "
+                "grey or raw Bayer cameras); hullguardd warns at start and --check-config."},
     {.key = "noise_sigmas",
      .member = &BackgroundConfig::noise_sigmas,
      .meaning = "A pixel's threshold is at least this many times its noise (sigma) learned at "
@@ -1739,6 +1742,15 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   }
   const std::size_t errors_before_background = r.error_count();
   ReadSection<BackgroundConfig>(r, sections, "background", kBackgroundFields, &config.background);
+  if (!config.background.shadows_are_foreground) {
+    config.notices.emplace_back(
+        ConfigError::At(r.file(), key_line("background", "shadows_are_foreground"),
+                        "background.shadows_are_foreground: false: a part of a person that is "
+                        "darker than the background by a shadow's ratio (dark trousers on a grey "
+                        "floor; with grey or raw Bayer cameras any colour) is taken for a shadow "
+                        "and reported background")
+            .what());
+  }
   if (r.error_count() == errors_before_background &&
       config.background.max_threshold < config.background.threshold) {
     int line = 0;

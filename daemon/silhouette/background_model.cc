@@ -76,6 +76,10 @@ inline std::uint16_t ExpectedHigh(std::uint8_t mean_high, std::uint16_t gain_q8)
   return Expected(static_cast<std::uint16_t>(mean_high << 8 | 0x80), gain_q8);
 }
 
+/// A frame value at least this high may be clipped: what is there may be
+/// anything brighter, a white vest before a bright wall as well as the wall.
+constexpr std::uint8_t kClipped = 254;
+
 /// |frame - expected| * inverse_gain (in 1/256), saturated to 255.
 inline std::uint8_t ScaledDifference(std::uint8_t frame, std::uint16_t expected,
                                      std::uint16_t inverse_gain_q8) {
@@ -92,7 +96,10 @@ HG_VECTOR_CLONES void AbsDiffRow(const std::uint8_t* __restrict frame,
                                  std::uint16_t gain_q8, std::uint16_t inverse_gain_q8,
                                  std::uint8_t* __restrict out) {
   for (int i = 0; i < n; ++i) {
-    out[i] = ScaledDifference(frame[i], ExpectedHigh(mean_high[i], gain_q8), inverse_gain_q8);
+    const std::uint8_t d =
+        ScaledDifference(frame[i], ExpectedHigh(mean_high[i], gain_q8), inverse_gain_q8);
+    // A clipped value can certify nothing.
+    out[i] = frame[i] >= kClipped ? 255 : d;
   }
 }
 
@@ -123,8 +130,9 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
                                       std::uint8_t* __restrict mask) {
   int count = 0;
   for (int u = 0; u < width; ++u) {
-    const bool foreground = ScaledDifference(frame[u], ExpectedHigh(mean_high[u], gain_q8),
-                                             inverse_gain_q8) >= threshold[u];
+    const bool foreground = (ScaledDifference(frame[u], ExpectedHigh(mean_high[u], gain_q8),
+                                              inverse_gain_q8) >= threshold[u]) |
+                            (frame[u] >= kClipped);  // A clipped value can certify nothing.
     mask[u] = foreground ? 255 : 0;
     count += foreground ? 1 : 0;
   }

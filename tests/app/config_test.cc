@@ -245,11 +245,16 @@ TEST(ConfigTest, EverySectionReadsBack) {
   EXPECT_EQ(c.octree.publish_depth, 6);
   EXPECT_EQ(c.motion.max_speed_mps, 1.6);
   EXPECT_EQ(c.motion.min_camera_distance_m, 1.5);
-  // Accepted, but it has no effect any more: said, with its line.
-  ASSERT_EQ(c.notices.size(), 1u);
+  // Accepted, but it has no effect any more: said, with its line; and
+  // shadows as background, which can hide a person, said too.
+  ASSERT_EQ(c.notices.size(), 2u);
   EXPECT_NE(c.notices[0].find("t.yaml:"), std::string::npos) << c.notices[0];
   EXPECT_NE(c.notices[0].find("motion.min_camera_distance_m: ignored"), std::string::npos)
       << c.notices[0];
+  EXPECT_NE(c.notices[1].find("t.yaml:44: background.shadows_are_foreground: false: a part of a "
+                              "person that is darker"),
+            std::string::npos)
+      << c.notices[1];
   EXPECT_EQ(Summary(c), "4 cameras (1 sim, 1 replay, 1 aravis, 1 v4l2), depth 8, 20 Hz");
 }
 
@@ -1208,14 +1213,14 @@ TEST(ConfigTrackingTest, ReferenceDocListsTheSection) {
 // integrator's choice) but said, with its line.
 TEST(ConfigTest, AKnowledgeFilterAboveAChildsVolumeIsNoticed) {
   const Config c = Parse(Replace(kFull, "knowledge_filter_m3: 0.002", "knowledge_filter_m3: 0.05"));
-  ASSERT_EQ(c.notices.size(), 2u);  // And motion.min_camera_distance_m.
+  ASSERT_EQ(c.notices.size(), 3u);  // And the shadows and motion.min_camera_distance_m.
   EXPECT_NE(c.notices[0].find("t.yaml:3: octree.knowledge_filter_m3: 0.05 m^3 is more than a small "
                               "child's volume (about 0.02 m^3)"),
             std::string::npos)
       << c.notices[0];
   EXPECT_EQ(Parse(Replace(kFull, "knowledge_filter_m3: 0.002", "knowledge_filter_m3: 0.02"))
                 .notices.size(),
-            1u);
+            2u);
 }
 
 // A camera inside an obstacle mesh (its mount modelled with it) runs failed

@@ -803,6 +803,36 @@ TEST(BackgroundModelTest, APersonCoveringMostOfTheViewDoesNotSetTheGain) {
   }
 }
 
+// A clipped pixel can certify nothing: a white vest before a wall that the
+// light (or the exposure) brings near white is clipped like the wall, at 255,
+// within the threshold of the wall's expected value, and was background.
+TEST(BackgroundModelTest, ClippedPixelsAreForeground) {
+  constexpr int kW = 64;
+  constexpr int kH = 48;
+  common::ImageRgb8 wall(kW, kH);
+  std::mt19937_64 rng(8);
+  std::uniform_int_distribution<int> level(236, 244);
+  for (std::uint8_t& p : wall.pixels) p = static_cast<std::uint8_t>(level(rng));
+  BackgroundModelOptions options;
+  options.compensate_gain = false;
+  BackgroundModel model(kW, kH, options);
+  common::ImageU8 mask;
+  for (int i = 0; i < 30; ++i) model.Apply(Observe(wall, 1.0, 1.0, &rng), &mask);
+  model.Apply(Observe(wall, 1.0, 1.0, &rng), &mask);
+  EXPECT_EQ(model.foreground_fraction(), 0.0);
+  common::ImageRgb8 frame = Observe(wall, 1.0, 1.0, &rng);
+  for (int v = 10; v < 30; ++v) {
+    for (int u = 20; u < 40; ++u) {
+      for (int c = 0; c < 3; ++c) frame.Pixel(u, v)[c] = 255;  // The vest, clipped.
+    }
+  }
+  model.Apply(frame, &mask);
+  for (int v = 10; v < 30; ++v) {
+    for (int u = 20; u < 40; ++u) ASSERT_EQ(mask.At(u, v), 255) << u << "," << v;
+  }
+  EXPECT_EQ(mask.At(5, 5), 0);
+}
+
 TEST(BackgroundModelTest, ThresholdsFollowTheLearnedNoise) {
   constexpr int kW = 64;
   constexpr int kH = 48;
