@@ -472,7 +472,8 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
     {.key = "guard_px",
      .member = &BackgroundConfig::guard_px,
      .meaning = "The model adapts only this far (pixels) or farther from any foreground pixel, so "
-                "a person standing still is never absorbed.",
+                "a person it has seen, standing still, is never absorbed (docs/cameras.md: what "
+                "the background model cannot see).",
      .limits = {0, 1000}},
     {.key = "compensate_gain",
      .member = &BackgroundConfig::compensate_gain,

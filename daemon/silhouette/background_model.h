@@ -3,7 +3,9 @@
 /// Per-camera background model: colour (or grey) frame -> conservative
 /// foreground mask. Learns the empty cell at start-up, follows global light
 /// changes with one gain per frame, adapts slowly to local light changes only
-/// far from foreground, and never learns a person who stands still.
+/// far from foreground, and never learns a person it has seen as foreground
+/// who stands still (what it cannot tell from the empty cell: docs/cameras.md,
+/// "The background model: what it cannot see").
 
 #include <cstdint>
 #include <string>
