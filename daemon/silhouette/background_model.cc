@@ -144,14 +144,16 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
 /// reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
 /// 2^16 / (frames averaged + 1), 0 for the first frame (the mean becomes x).
 /// With `unbias_q12` > 0 the deviation of x from the new mean, in quarter
-/// levels, is added up. 32-bit lanes suffice: |x - m| < 2^16 and
+/// levels, is added up, and its largest value kept in `peak` (levels).
+/// 32-bit lanes suffice: |x - m| < 2^16 and
 /// inverse_count <= 2^15 after the first frame, and (p + 2^15) >> 16 is
 /// computed as ((p >> 1) + 2^14) >> 15, which is the same for every p.
 HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_t n,
                                 std::uint32_t inverse_gain, std::int32_t inverse_count,
                                 std::int32_t unbias_q12, std::uint8_t* __restrict mean_high,
                                 std::uint8_t* __restrict mean_low,
-                                std::uint16_t* __restrict deviation) {
+                                std::uint16_t* __restrict deviation,
+                                std::uint8_t* __restrict peak) {
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t scaled = (frame[i] * inverse_gain) >> 8;
     const auto x = static_cast<std::int32_t>(scaled < 65535u ? scaled : 65535u);
@@ -165,8 +167,10 @@ HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_
       const std::int32_t d = x > updated ? x - updated : updated - x;
       // 8.8 -> quarter levels: >> 6; Q12: >> 12.
       const std::int32_t term = (d * unbias_q12) >> 18;
-      deviation[i] = static_cast<std::uint16_t>(
-          deviation[i] + (term < kMaxDeviationTerm ? term : kMaxDeviationTerm));
+      const std::int32_t capped = term < kMaxDeviationTerm ? term : kMaxDeviationTerm;
+      deviation[i] = static_cast<std::uint16_t>(deviation[i] + capped);
+      const auto level = static_cast<std::uint8_t>(capped >> 2);
+      peak[i] = level > peak[i] ? level : peak[i];
     }
   }
 }
@@ -240,6 +244,7 @@ BackgroundModel::BackgroundModel(int width, int height, const BackgroundModelOpt
   mean_high_.assign(3 * pixels, 0);
   mean_low_.assign(3 * pixels, 0);
   deviation_.assign(3 * pixels, 0);
+  peak_.assign(3 * pixels, 0);
   threshold_.assign(pixels, 0);
   tiles_x_ = (width + kTile - 1) / kTile;
   tiles_y_ = (height + kTile - 1) / kTile;
@@ -273,6 +278,7 @@ void BackgroundModel::Reset() {
   std::fill(mean_high_.begin(), mean_high_.end(), 0);
   std::fill(mean_low_.begin(), mean_low_.end(), 0);
   std::fill(deviation_.begin(), deviation_.end(), 0);
+  std::fill(peak_.begin(), peak_.end(), 0);
   std::fill(threshold_.begin(), threshold_.end(), 0);
   std::fill(tile_free_.begin(), tile_free_.end(), 1);
 }
@@ -538,7 +544,7 @@ void BackgroundModel::Learn(const std::uint8_t* frame) {
   const std::size_t n = static_cast<std::size_t>(width_) * height_ * channels_;
   LearnSpan(frame, n, inverse_gain, k == 0 ? 0 : static_cast<std::int32_t>(inverse_count),
             static_cast<std::int32_t>(unbias_q12), mean_high_.data(), mean_low_.data(),
-            deviation_.data());
+            deviation_.data(), peak_.data());
   if (measure_noise) ++deviation_frames_;
 }
 
@@ -554,7 +560,19 @@ void BackgroundModel::FinishLearning() {
     const double sigma = largest * sigma_per_unit;
     const double t = std::max<double>(options_.min_threshold, options_.noise_sigmas * sigma);
     const auto rounded = static_cast<int>(std::ceil(t - 1e-9));
-    threshold_[p] = rounded > options_.max_threshold ? 0 : static_cast<std::uint8_t>(rounded);
+    // A learning frame that differed from the background by a threshold or
+    // more showed something passing (a robot arm moving while the cell was
+    // learned): it biased the mean and the noise there, which could hide a
+    // person of the contrast the threshold promises. Such a pixel is
+    // unreliable, always foreground, and saved so (its noise saturated).
+    int peak = 0;
+    for (int k = 0; k < c; ++k) peak = std::max<int>(peak, peak_[p * c + k]);
+    const bool passed = peak >= rounded;
+    if (passed) {
+      for (int k = 0; k < c; ++k) deviation_[p * c + k] = 0xFFFF;
+    }
+    threshold_[p] =
+        passed || rounded > options_.max_threshold ? 0 : static_cast<std::uint8_t>(rounded);
   }
   std::fill(tile_free_.begin(), tile_free_.end(), 1);
   GatherSample(&sample_reference_);

@@ -192,6 +192,8 @@ class BackgroundModel {
   std::vector<std::uint8_t> mean_high_;
   std::vector<std::uint8_t> mean_low_;
   std::vector<std::uint16_t> deviation_;  ///< Learning: sum of |x - mean|, 1/4 grey levels.
+  /// Learning: the largest single |x - mean|, grey levels (capped at 255).
+  std::vector<std::uint8_t> peak_;
   // Per pixel.
   std::vector<std::uint8_t> threshold_;  ///< Foreground iff max |d| >= this; 0 = always.
   // Per 8x8 tile.
