@@ -222,22 +222,11 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       c.has_model.store(true, std::memory_order_release);
       const std::string file = BackgroundFile(camera);
       std::string error;
-      // A kept background of the other format (RGB or grey: the camera's pixel
-      // format or debayering changed since) is none: the model would forget it
-      // at this frame and learn afresh, silently, with whoever is in view.
+      // Only a kept background of the frames' format (RGB or grey) is taken up.
       const int channels = frame.kind == capture::FrameKind::kRgb ? 3 : 1;
-      bool taken_up = false;
-      if (options_.background_start != Start::kRelearn && !options_.background_dir.empty() &&
-          c.background->Load(file, &error)) {
-        taken_up = c.background->channels() == channels;
-        if (!taken_up) {
-          error = file + " holds a background of " +
-                  (c.background->channels() == 3 ? "colour" : "grey") +
-                  " frames, the camera now delivers " + (channels == 3 ? "colour" : "grey") +
-                  " ones (its pixel format changed?)";
-          c.background->Reset();
-        }
-      }
+      const bool taken_up = options_.background_start != Start::kRelearn &&
+                            !options_.background_dir.empty() &&
+                            c.background->Load(file, &error, channels);
       if (options_.background_start == Start::kRelearn) {
         log::Info("{}: learning the background afresh, to be kept in {}", c.model.name, file);
       } else if (taken_up) {

@@ -360,7 +360,7 @@ bool BackgroundModel::Save(const std::string& path, std::string* error) const {
   return true;
 }
 
-bool BackgroundModel::Load(const std::string& path, std::string* error) {
+bool BackgroundModel::Load(const std::string& path, std::string* error, int channels) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = path + ": cannot open";
@@ -378,6 +378,13 @@ bool BackgroundModel::Load(const std::string& path, std::string* error) {
     *error = path + ": a background of " + std::to_string(header.width) + "x" +
              std::to_string(header.height) + " pixels, " + std::to_string(header.channels) +
              " channels; the camera is " + std::to_string(width_) + "x" + std::to_string(height_);
+    return false;
+  }
+  if (channels != 0 && header.channels != channels) {
+    auto kind = [](int c) { return c == 3 ? "colour" : "grey"; };
+    *error = path + " holds a background of " + kind(header.channels) +
+             " frames, the camera now delivers " + kind(channels) +
+             " ones (its pixel format changed?)";
     return false;
   }
   const auto pixels = static_cast<std::size_t>(width_) * height_;

@@ -93,9 +93,6 @@ class BackgroundModel {
   /// Light gain of the last frame relative to the first learning frame (1
   /// always when compensate_gain is false).
   [[nodiscard]] double gain() const { return gain_; }
-  /// The format of the frames learned from or of the background taken up: 3
-  /// (RGB), 1 (grey), 0 before either.
-  [[nodiscard]] int channels() const { return channels_; }
   /// Share of foreground pixels in the last mask, [0, 1].
   [[nodiscard]] double foreground_fraction() const { return foreground_fraction_; }
 
@@ -115,8 +112,11 @@ class BackgroundModel {
   /// model is then learned, with thresholds from its own options (which may
   /// differ from the saver's), and the format (RGB or grey) of the saver's
   /// frames. Returns false with *error set, the model unchanged, when the
-  /// file cannot be read, is of another size or is damaged (checksum).
-  bool Load(const std::string& path, std::string* error);
+  /// file cannot be read, is of another size or is damaged (checksum), or
+  /// holds another format than `channels` (3 RGB, 1 grey; 0: either): a
+  /// frame of the other format would make the model forget it and learn
+  /// afresh, with whoever is in view.
+  bool Load(const std::string& path, std::string* error, int channels = 0);
 
   /// The background of pixel (u, v), channel c (0 for grey), in grey levels at
   /// the reference illumination. For tests and diagnostics.
