@@ -653,8 +653,9 @@ const Field<BlackBoxConfig> kBlackBoxFields[] = {
      .meaning = "Dump when the status turns from ok to degraded; SIGUSR1 always dumps."},
     {.key = "max_memory_mb",
      .member = &BlackBoxConfig::max_memory_mb,
-     .meaning = "Memory allowed (MiB) for the rings and the copy a dump makes of them (twice the "
-                "rings); a longer history is refused at load.",
+     .meaning = "Memory allowed (MiB) for the rings and the copies of them of two dumps in "
+                "flight (one written, the next copied meanwhile): three times the rings; a "
+                "longer history is refused at load.",
      .limits = {1, 100000}},
     {.key = "camera_rate_hz",
      .member = &BlackBoxConfig::camera_rate_hz,
@@ -1091,7 +1092,7 @@ void CheckTracking(Reader& r, const Entries& sections, const Config& config) {
 }
 
 /// The black box's memory: its rings, sized from every camera's frame size,
-/// kind and rate, plus a dump's copy of them must fit max_memory_mb.
+/// kind and rate, plus two dumps' copies of them must fit max_memory_mb.
 void CheckBlackBox(Reader& r, const Entries& sections, const Config& config) {
   int line = 0;
   if (const auto it = sections.find("blackbox"); it != sections.end()) {
@@ -1111,7 +1112,7 @@ void CheckBlackBox(Reader& r, const Entries& sections, const Config& config) {
   try {
     const std::vector<pipeline::BlackBoxCamera> cameras = BlackBoxCameras(config);
     const double total = mib(cameras);
-    if (2.0 * total <= config.blackbox.max_memory_mb) return;
+    if (pipeline::kBlackBoxMemoryFactor * total <= config.blackbox.max_memory_mb) return;
     const pipeline::BlackBoxCamera* largest = &cameras.front();
     for (const pipeline::BlackBoxCamera& c : cameras) {
       if (mib({c}) > mib({*largest})) largest = &c;
@@ -1119,7 +1120,7 @@ void CheckBlackBox(Reader& r, const Entries& sections, const Config& config) {
     const geometry::CameraModel& m = largest->model;
     r.Error(line, "blackbox.seconds",
             FormatNumber(seconds) + " s of every camera need " + FormatNumber(std::round(total)) +
-                " MiB of rings, twice that while a dump copies them, more than "
+                " MiB of rings, three times that while two dumps copy them, more than "
                 "blackbox.max_memory_mb = " +
                 std::to_string(config.blackbox.max_memory_mb) + " (largest: " + m.name + " " +
                 std::to_string(m.width) + "x" + std::to_string(m.height) + " " +

@@ -246,7 +246,9 @@ int RunPipeline(const Config& config, double duration_s) {
       if (!black_box) {
         log::Warn("SIGUSR1: the black box is off (blackbox.seconds: 0)");
       } else if (!black_box->RequestDump("SIGUSR1")) {
-        log::Warn("SIGUSR1: a black-box dump is already running");
+        log::Warn(
+            "SIGUSR1 ignored: two black-box dumps are in flight (one written, the next waiting "
+            "for it)");
       }
     }
     if (black_box && config.blackbox.on_degraded) {
@@ -254,7 +256,7 @@ int RunPipeline(const Config& config, double duration_s) {
         blackbox_seen = s->sequence;
         degraded_trigger.Observe(s->health.degraded || other_publishers > 0);
       }
-      if (degraded_trigger.ShouldDump(now, black_box->busy()) &&
+      if (degraded_trigger.ShouldDump(now, black_box->accepting()) &&
           black_box->RequestDump("degraded")) {
         degraded_trigger.Dumped(now);
       }
@@ -290,6 +292,14 @@ int RunPipeline(const Config& config, double duration_s) {
   notifier.Stopping();
   watchdog.Stop();
   pipeline.Stop();
+  // A turn to degraded not dumped yet (inside the interval after the last
+  // dump) is dumped now: the rings hold it, and they are not filled again.
+  if (black_box && config.blackbox.on_degraded && degraded_trigger.due() &&
+      !black_box->RequestDump("degraded")) {
+    log::Warn(
+        "black box: a turn to degraded was not dumped: two dumps were still in flight at "
+        "shutdown");
+  }
   if (publish_stage) publish_stage->Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {

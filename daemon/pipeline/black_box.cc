@@ -69,7 +69,7 @@ BlackBox::BlackBox(BlackBoxOptions options, std::vector<BlackBoxCamera> cameras)
   }
   const std::size_t ring_bytes = BlackBoxBytes(cameras, options_.seconds);
   if (options_.max_memory_mb > 0.0 &&
-      2.0 * static_cast<double>(ring_bytes) > options_.max_memory_mb * kMiB) {
+      kBlackBoxMemoryFactor * static_cast<double>(ring_bytes) > options_.max_memory_mb * kMiB) {
     std::string detail;
     for (const BlackBoxCamera& c : cameras) {
       char line[160];
@@ -80,8 +80,8 @@ BlackBox::BlackBox(BlackBoxOptions options, std::vector<BlackBoxCamera> cameras)
     }
     char message[256];
     std::snprintf(message, sizeof(message),
-                  "blackbox: %.3g s of frames need %.0f MiB of rings, twice that with a dump's "
-                  "copy, more than max_memory_mb = %.0f (",
+                  "blackbox: %.3g s of frames need %.0f MiB of rings, three times that with two "
+                  "dumps' copies, more than max_memory_mb = %.0f (",
                   options_.seconds, static_cast<double>(ring_bytes) / kMiB, options_.max_memory_mb);
     throw common::ConfigError(message + detail + ")");
   }
@@ -222,10 +222,11 @@ BlackBoxDump BlackBox::DumpTo(const std::string& directory, const std::string& r
   job.directory = directory;
   job.reason = reason;
   job.frames = CopyRings(&job.torn);
-  return Write(job);
+  return Write(&job);
 }
 
-BlackBoxDump BlackBox::Write(const Job& job) {
+BlackBoxDump BlackBox::Write(Job* job_in) {
+  Job& job = *job_in;
   BlackBoxDump dump;
   dump.reason = job.reason;
   for (std::uint64_t t : job.torn) dump.torn += t;
@@ -240,8 +241,13 @@ BlackBoxDump BlackBox::Write(const Job& job) {
         writer.CountLost(static_cast<int>(c), capture::FrameLoss::kOverwritten, job.torn[c]);
       }
     }
-    for (const Copied& item : job.frames) {
-      if (writer.Write(item.camera, item.number, item.frame)) {
+    for (Copied& item : job.frames) {
+      const bool written = writer.Write(item.camera, item.number, item.frame);
+      // Each frame's pixels go once written: a dump copied meanwhile needs
+      // the memory (BlackBoxOptions::max_memory_mb).
+      std::vector<std::uint8_t>().swap(item.frame.grey.pixels);
+      std::vector<std::uint8_t>().swap(item.frame.rgb.pixels);
+      if (written) {
         ++dump.frames;
         const std::int64_t stamp = item.frame.stamp_ns;
         if (dump.frames == 1 || stamp < dump.first_ns) dump.first_ns = stamp;
@@ -264,25 +270,33 @@ BlackBoxDump BlackBox::Write(const Job& job) {
 bool BlackBox::RequestDump(const std::string& reason) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    if (busy_ || stop_) {
+    if (!AcceptingLocked()) {
       refused_.fetch_add(1, std::memory_order_relaxed);
       return false;
     }
-    busy_ = true;
     request_ = reason;
   }
   wake_.notify_one();
   return true;
 }
 
+bool BlackBox::AcceptingLocked() const { return !stop_ && !request_ && !copying_ && !job_; }
+
+bool BlackBox::accepting() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return AcceptingLocked();
+}
+
 bool BlackBox::busy() const {
   const std::lock_guard<std::mutex> lock(mutex_);
-  return busy_;
+  return BusyLocked();
 }
+
+bool BlackBox::BusyLocked() const { return request_ || copying_ || job_ || encoding_; }
 
 void BlackBox::WaitIdle() {
   std::unique_lock<std::mutex> lock(mutex_);
-  idle_.wait(lock, [this] { return !busy_; });
+  idle_.wait(lock, [this] { return !BusyLocked(); });
 }
 
 std::optional<BlackBoxDump> BlackBox::LastDump() const {
@@ -300,6 +314,7 @@ void BlackBox::CopierLoop() {
     Job job;
     job.reason = std::move(*request_);
     request_.reset();
+    copying_ = true;
     lock.unlock();
     const std::int64_t now = RealtimeNs();
     fs::path folder = fs::path(options_.directory) / BlackBoxFolderName(now);
@@ -310,7 +325,11 @@ void BlackBox::CopierLoop() {
     job.directory = folder.string();
     job.frames = CopyRings(&job.torn);
     lock.lock();
+    // A request is only taken while no copied dump waits (AcceptingLocked),
+    // so the slot is free: at most one dump written and one waiting.
     job_ = std::move(job);
+    copying_ = false;
+    copies_.fetch_add(1, std::memory_order_relaxed);
     encode_.notify_one();
   }
   copier_done_ = true;
@@ -327,14 +346,15 @@ void BlackBox::EncoderLoop() {
   for (;;) {
     encode_.wait(lock, [this] { return job_.has_value() || copier_done_; });
     if (!job_) break;
-    const Job job = std::move(*job_);
+    Job job = std::move(*job_);
     job_.reset();
+    encoding_ = true;
     lock.unlock();
-    BlackBoxDump dump = Write(job);
+    BlackBoxDump dump = Write(&job);
     if (options_.on_dump) options_.on_dump(dump);
     lock.lock();
     last_ = std::move(dump);
-    busy_ = false;
+    encoding_ = false;
     idle_.notify_all();
   }
 }

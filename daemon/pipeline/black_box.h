@@ -32,11 +32,16 @@ struct BlackBoxCamera {
 
 struct BlackBoxDump;
 
+/// Memory of a black box per byte of its rings: the rings, the copy of the
+/// dump being written and the copy of the next one, taken meanwhile.
+inline constexpr double kBlackBoxMemoryFactor = 3.0;
+
 struct BlackBoxOptions {
   double seconds = 10.0;  ///< History per camera (s); > 0.
   std::string directory;  ///< Requested dumps go to directory/<UTC time>/.
-  /// Refuse more memory than this (MiB): the rings plus the copy a dump makes
-  /// of them, twice the rings. 0 = no limit.
+  /// Refuse more memory than this (MiB): the rings plus the copies of them
+  /// of two dumps in flight, three times the rings
+  /// (kBlackBoxMemoryFactor). 0 = no limit.
   double max_memory_mb = 0.0;
   bool low_priority = true;  ///< Encode requested dumps at nice 19.
   /// Called on the writer thread after each requested dump (logging).
@@ -75,14 +80,20 @@ struct BlackBoxDump {
 /// as a mixture of two frames. The copy runs on a thread of normal priority,
 /// at memory speed, so that it outruns the capture threads and at most the
 /// oldest frames are lost; the PNG encoding and the writing, seconds of CPU,
-/// run afterwards on a second thread at nice 19, below the pipeline.
+/// run afterwards on a second thread at nice 19, below the pipeline. While
+/// one dump is written the next is still copied when asked for: a camera
+/// lost during a long dump is kept at the moment it is lost, not after the
+/// first dump is written and the ring has moved on. Two dumps are in flight
+/// at most (one written, one copied and waiting).
 ///
 /// When to dump on the status turning from ok to degraded: at most once per
 /// `min_interval` (the ring's length: a flapping status would otherwise write
 /// the same frames again and again). A turn sooner than that after the last
-/// dump, or while another dump runs, is dumped once it may be; the ring, as
-/// long as that wait, still holds the moment of the turn. So one brief turn
-/// (a missed deadline) cannot hide a camera lost a moment later.
+/// dump is dumped once the interval is over: that dump and the last one
+/// together hold every frame from the last one's start on, the turn among
+/// them. So one brief turn (a missed deadline) cannot hide a camera lost a
+/// moment later. A turn while the black box takes no request (two dumps in
+/// flight) waits for it.
 /// Thread-compatible: one thread (the daemon's main loop) calls it.
 class DegradedDumpTrigger {
  public:
@@ -94,10 +105,13 @@ class DegradedDumpTrigger {
     if (degraded && was_ok_) due_ = true;
     was_ok_ = !degraded;
   }
-  /// Whether a dump is due now and allowed (none running, the interval past).
-  [[nodiscard]] bool ShouldDump(Clock::time_point now, bool busy) const {
-    return due_ && !busy && (!dumped_ || now - last_ >= min_interval_);
+  /// Whether a dump is due now and allowed (the black box accepting a
+  /// request, the interval past).
+  [[nodiscard]] bool ShouldDump(Clock::time_point now, bool accepting) const {
+    return due_ && accepting && (!dumped_ || now - last_ >= min_interval_);
   }
+  /// A turn not dumped yet (at shutdown: the last chance, interval or not).
+  [[nodiscard]] bool due() const { return due_; }
   /// The dump ShouldDump() asked for was started at `now`.
   void Dumped(Clock::time_point now) {
     due_ = false;
@@ -114,7 +128,7 @@ class DegradedDumpTrigger {
 };
 
 /// Thread safety: Push(camera, ...) from one thread per camera (its capture
-/// thread); RequestDump(), busy(), LastDump(), WaitIdle() and the counters
+/// thread); RequestDump(), accepting(), busy(), LastDump(), WaitIdle() and the counters
 /// from any thread; DumpTo() from one thread at a time (tests, tools).
 class BlackBox {
  public:
@@ -133,15 +147,19 @@ class BlackBox {
   /// camera's) is not kept and is counted in oversized().
   void Push(int camera, const capture::Frame& frame);
 
-  /// Asks for a dump into options.directory/<UTC time>/. False (and counted
-  /// in refused_requests()) while one is pending or running: one at a time.
+  /// Asks for a dump into options.directory/<UTC time>/: the rings are
+  /// copied at once, also while an earlier dump is still written. False (and
+  /// counted in refused_requests()) while not accepting().
   bool RequestDump(const std::string& reason);
 
   /// Copies the rings and writes them into `directory` (created) on the
   /// calling thread. For tests and tools; the daemon uses RequestDump().
   BlackBoxDump DumpTo(const std::string& directory, const std::string& reason);
 
-  /// True while a requested dump is pending or running.
+  /// True while RequestDump() would take a request: none is pending or
+  /// being copied, and no copied dump waits for the one being written.
+  [[nodiscard]] bool accepting() const;
+  /// True while a requested dump is pending, copied or written.
   [[nodiscard]] bool busy() const;
   /// Blocks until no dump is requested or running.
   void WaitIdle();
@@ -157,6 +175,8 @@ class BlackBox {
     return rings_[camera]->oversized.load(std::memory_order_relaxed);
   }
   [[nodiscard]] std::uint64_t dumps() const { return dumps_.load(std::memory_order_relaxed); }
+  /// Requested dumps whose rings have been copied (written or not yet).
+  [[nodiscard]] std::uint64_t copies() const { return copies_.load(std::memory_order_relaxed); }
   [[nodiscard]] std::uint64_t refused_requests() const {
     return refused_.load(std::memory_order_relaxed);
   }
@@ -203,8 +223,10 @@ class BlackBox {
   void EncoderLoop();
   /// Copies every consistent slot of every ring; counts torn ones per camera.
   std::vector<Copied> CopyRings(std::vector<std::uint64_t>* torn) const;
-  /// Writes a copied dump as a recording.
-  BlackBoxDump Write(const Job& job);
+  /// Writes a copied dump as a recording, freeing each frame once written.
+  BlackBoxDump Write(Job* job);
+  [[nodiscard]] bool AcceptingLocked() const;  // mutex_ held.
+  [[nodiscard]] bool BusyLocked() const;       // mutex_ held.
   /// Reads one slot; false when it changed while being read or does not hold
   /// frame `number`.
   bool ReadSlot(const Ring& ring, std::uint64_t number, Copied* out) const;
@@ -218,12 +240,14 @@ class BlackBox {
   std::condition_variable encode_;  // The encoder: a job or the copier's end.
   std::condition_variable idle_;
   std::optional<std::string> request_;  // Reason of the pending request.
+  bool copying_ = false;                // The copier copies the rings.
   std::optional<Job> job_;              // Copied, waiting for the encoder.
-  bool busy_ = false;                   // A dump is requested, copied or being written.
+  bool encoding_ = false;               // The encoder writes a dump.
   bool stop_ = false;
   bool copier_done_ = false;
   std::optional<BlackBoxDump> last_;
   std::atomic<std::uint64_t> dumps_{0};
+  std::atomic<std::uint64_t> copies_{0};
   std::atomic<std::uint64_t> refused_{0};
   std::thread copier_;
   std::thread encoder_;

@@ -9,9 +9,11 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 #include <new>
 #include <random>
 #include <string>
@@ -303,6 +305,68 @@ TEST_F(BlackBoxTest, RequestedDumpGoesToATimeNamedFolder) {
   EXPECT_EQ(box.dumps(), 1U);
 }
 
+// A dump asked for while another is written is copied at once, not after
+// the first is written: it holds the frames of the moment it was asked for,
+// none pushed later. A third request while one is written and one waits is
+// refused.
+TEST_F(BlackBoxTest, DumpAskedForDuringAnotherIsCopiedAtOnce) {
+  BlackBoxOptions o;
+  o.seconds = 0.5;  // 16 slots.
+  o.directory = dir_.string();
+  o.low_priority = false;
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool release = false;
+  std::vector<BlackBoxDump> dumps;
+  o.on_dump = [&](const BlackBoxDump& d) {
+    std::unique_lock<std::mutex> lock(mutex);
+    dumps.push_back(d);
+    cv.wait(lock, [&] { return release; });  // The first dump's writing lasts.
+  };
+  BlackBox box(o, {{Camera("a", 16, 16), FrameKind::kMask, 30.0}});
+  Frame frame;
+  auto push = [&](std::uint64_t from, std::uint64_t to) {
+    for (std::uint64_t n = from; n < to; ++n) {
+      MakeFrame(FrameKind::kMask, 16, 16, n, 0, &frame);
+      box.Push(0, frame);
+    }
+  };
+  auto wait_copies = [&](std::uint64_t n) {
+    for (int i = 0; i < 2000 && box.copies() < n; ++i)
+      std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    return box.copies();
+  };
+  push(0, 3);
+  ASSERT_TRUE(box.RequestDump("SIGUSR1"));
+  ASSERT_EQ(wait_copies(1), 1U);
+  push(3, 6);
+  ASSERT_TRUE(box.accepting()) << "the first dump is being written, none waits";
+  ASSERT_TRUE(box.RequestDump("degraded"));
+  ASSERT_EQ(wait_copies(2), 2U) << "copied while the first dump is still written";
+  EXPECT_FALSE(box.accepting());
+  EXPECT_FALSE(box.RequestDump("SIGUSR1")) << "one written, one waiting";
+  EXPECT_EQ(box.refused_requests(), 1U);
+  push(6, 9);
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    release = true;
+  }
+  cv.notify_all();
+  box.WaitIdle();
+  ASSERT_EQ(dumps.size(), 2U);
+  EXPECT_EQ(dumps[0].reason, "SIGUSR1");
+  EXPECT_EQ(dumps[0].frames, 3U);
+  EXPECT_EQ(dumps[1].reason, "degraded");
+  EXPECT_EQ(dumps[1].frames, 6U);
+  const std::int64_t fifth = 1'700'000'000'000'000'000 + 5 * 33'333'333;  // MakeFrame's stamp.
+  EXPECT_EQ(dumps[1].last_ns, fifth) << "frames pushed after the request are not in it";
+  EXPECT_NE(dumps[0].directory, dumps[1].directory);
+  const auto second = capture::ReadRecordingCamera(dumps[1].directory, "a");
+  ASSERT_EQ(second.frames.size(), 6U);
+  EXPECT_EQ(second.frames.back().stamp_ns, fifth);
+  EXPECT_TRUE(box.accepting());
+}
+
 }  // namespace
 }  // namespace hg::pipeline
 
@@ -318,26 +382,29 @@ TEST(DegradedDumpTriggerTest, ATurnInsideTheIntervalIsDumpedAfterIt) {
   using std::chrono::milliseconds;
   const Clock::time_point t0{};
   DegradedDumpTrigger trigger(milliseconds(1000));
+  EXPECT_FALSE(trigger.due());
   trigger.Observe(true);  // Starting.
-  EXPECT_FALSE(trigger.ShouldDump(t0, false));
+  EXPECT_FALSE(trigger.ShouldDump(t0, true));
   trigger.Observe(false);
   trigger.Observe(true);  // The deadline miss.
-  EXPECT_FALSE(trigger.ShouldDump(t0, /*busy=*/true)) << "one dump at a time";
-  ASSERT_TRUE(trigger.ShouldDump(t0 + milliseconds(20), false));
+  EXPECT_FALSE(trigger.ShouldDump(t0, /*accepting=*/false)) << "two dumps in flight";
+  EXPECT_TRUE(trigger.due());
+  ASSERT_TRUE(trigger.ShouldDump(t0 + milliseconds(20), true));
   trigger.Dumped(t0 + milliseconds(20));
-  EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(40), false));
+  EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(40), true));
   trigger.Observe(false);
   trigger.Observe(true);  // The camera lost, and it stays lost.
+  EXPECT_TRUE(trigger.due()) << "dumped at shutdown inside the interval";
   for (int ms = 420; ms < 1020; ms += 20) {
     trigger.Observe(true);
-    EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(ms), false)) << ms;
+    EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(ms), true)) << ms;
   }
   trigger.Observe(true);
-  ASSERT_TRUE(trigger.ShouldDump(t0 + milliseconds(1020), false));
+  ASSERT_TRUE(trigger.ShouldDump(t0 + milliseconds(1020), true));
   trigger.Dumped(t0 + milliseconds(1020));
   for (int ms = 1040; ms < 5000; ms += 20) {
     trigger.Observe(true);  // Degraded throughout: no new turn, no new dump.
-    EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(ms), false)) << ms;
+    EXPECT_FALSE(trigger.ShouldDump(t0 + milliseconds(ms), true)) << ms;
   }
 }
 

@@ -204,7 +204,8 @@ TEST_F(RecordCliTest, BlackBoxLargerThanItsMemoryIsRefusedAtLoad) {
   EXPECT_EQ(r.code, 2) << r.out << r.err;
   // 3 cameras x 1801 slots x 57600 bytes = 297 MiB of rings.
   EXPECT_NE(r.err.find(Path("big.yaml") + ":11: blackbox.seconds: 60 s of every camera need 297 "
-                                          "MiB of rings, twice that while a dump copies them, "
+                                          "MiB of rings, three times that while two dumps copy "
+                                          "them, "
                                           "more than blackbox.max_memory_mb = 100 (largest: cam0 "
                                           "320x180 mask at 30 Hz, 99 MiB)"),
             std::string::npos)
