@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <cstring>
 
+#include <fmt/format.h>
+
 #include "capture/camera_health.h"
 
 namespace hg::app {
@@ -99,6 +101,26 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s,
     }
   }
   return line;
+}
+
+bool ForegroundWatch::Due(std::size_t camera, std::optional<Clock::time_point> since,
+                          Clock::time_point now) {
+  if (!since || *since != run_[camera]) told_[camera] = false;
+  if (!since) return false;
+  run_[camera] = *since;
+  if (told_[camera] || now - *since < after_) return false;
+  told_[camera] = true;
+  return true;
+}
+
+std::string ForegroundWarning(const std::string& name, double seconds) {
+  return fmt::format(
+      "{}: a third of the view or more has been foreground for {:.0f} s. If nobody stands that "
+      "close to the camera, the light has changed in part of the view (a bank of lamps, "
+      "daylight) while the rest kept it: the changed part stays foreground, occupied, until the "
+      "background is learned again with the cell empty (hullguardd --config FILE "
+      "--learn-background, then restart)",
+      name, seconds);
 }
 
 }  // namespace hg::app

@@ -3,8 +3,11 @@
 /// hullguardd's one line of health: the periodic log line (once a second) and
 /// systemd's STATUS=. Its words are documented in docs/operations.md.
 
+#include <chrono>
+#include <cstddef>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "app/tracking_stage.h"
 #include "pipeline/snapshot.h"
@@ -22,5 +25,28 @@ namespace hg::app {
 [[nodiscard]] std::string HealthLine(const pipeline::OccupancySnapshot& s,
                                      const std::optional<TrackingStats>& tracking,
                                      bool foreign_publisher);
+
+/// Tells once per run when a camera has been mostly foreground
+/// (pipeline::Pipeline::ForegroundHeavySince()) for `after` or longer.
+/// Thread-compatible: the daemon's main loop calls it.
+class ForegroundWatch {
+ public:
+  using Clock = std::chrono::steady_clock;
+  ForegroundWatch(std::size_t cameras, Clock::duration after)
+      : after_(after), told_(cameras, false) {}
+  /// `since`: the camera's ForegroundHeavySince(). True the first time in a
+  /// run that it reaches `after`; the run ends when `since` is nullopt or
+  /// another instant.
+  [[nodiscard]] bool Due(std::size_t camera, std::optional<Clock::time_point> since,
+                         Clock::time_point now);
+
+ private:
+  Clock::duration after_;
+  std::vector<bool> told_;
+  std::vector<Clock::time_point> run_ = std::vector<Clock::time_point>(told_.size());
+};
+
+/// The warning for camera `name` mostly foreground for `seconds`.
+[[nodiscard]] std::string ForegroundWarning(const std::string& name, double seconds);
 
 }  // namespace hg::app

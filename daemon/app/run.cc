@@ -82,6 +82,9 @@ std::optional<TrackingStats> StatsOf(const TrackingStage* tracking) {
 /// that `logging.level: warn` still shows what went wrong, once a second).
 // `foreign_publisher`: another publisher writes this daemon's topics (the
 // status samples say degraded while it does).
+/// A camera mostly foreground this long is worth a warning (ForegroundWatch).
+constexpr std::chrono::seconds kForegroundWarnAfter{60};
+
 void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line,
                bool foreign_publisher) {
   log::Write(s.health.degraded || foreign_publisher ? log::Level::kWarn : log::Level::kInfo, line);
@@ -220,6 +223,7 @@ int RunPipeline(const Config& config, double duration_s) {
   // Lets a test or a viewer relate stamps to scene or recording time.
   log::Info("sim/replay time 0 is {} ns (CLOCK_REALTIME)", sim_clock.epoch_ns);
   bool ready = false;
+  ForegroundWatch foreground_watch(config.cameras.size(), kForegroundWarnAfter);
   std::uint64_t blackbox_seen = 0;
   pipeline::DegradedDumpTrigger degraded_trigger(
       std::chrono::duration_cast<std::chrono::steady_clock::duration>(
@@ -282,6 +286,13 @@ int RunPipeline(const Config& config, double duration_s) {
     }
     if (now >= next_report) {
       next_report += std::chrono::seconds(1);
+      for (std::size_t c = 0; c < config.cameras.size(); ++c) {
+        const auto since = pipeline.ForegroundHeavySince(static_cast<int>(c));
+        if (foreground_watch.Due(c, since, now)) {
+          log::Warn("{}", ForegroundWarning(config.cameras[c].model.name,
+                                            std::chrono::duration<double>(now - *since).count()));
+        }
+      }
       if (const auto s = pipeline.Latest()) {
         const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0);
         LogHealth(*s, line, other_publishers > 0);

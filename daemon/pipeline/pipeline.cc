@@ -187,6 +187,14 @@ bool Pipeline::HasBackgroundModel(int camera) const {
   return cameras_[camera]->has_model.load(std::memory_order_acquire);
 }
 
+std::optional<std::chrono::steady_clock::time_point> Pipeline::ForegroundHeavySince(
+    int camera) const {
+  const std::int64_t ns = cameras_[camera]->heavy_since_ns.load(std::memory_order_relaxed);
+  if (ns < 0) return std::nullopt;
+  return SteadyClock::time_point(
+      std::chrono::duration_cast<SteadyClock::duration>(std::chrono::nanoseconds(ns)));
+}
+
 std::string Pipeline::BackgroundFile(int camera) const {
   return options_.background_dir + "/background-" + cameras_[camera]->model.name + ".bin";
 }
@@ -257,6 +265,16 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       c.background->Apply(frame.grey, &c.foreground);
     }
     if (c.source && !c.background->learning()) c.source->BackgroundLearned();
+    if (!c.background->learning()) {
+      if (c.background->foreground_fraction() < kHeavyForegroundShare) {
+        c.heavy_since_ns.store(-1, std::memory_order_relaxed);
+      } else if (c.heavy_since_ns.load(std::memory_order_relaxed) < 0) {
+        c.heavy_since_ns.store(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                   SteadyClock::now().time_since_epoch())
+                                   .count(),
+                               std::memory_order_relaxed);
+      }
+    }
     if (was_learning && !c.background->learning() && !options_.background_dir.empty()) {
       // Once per learning, at the end of warm-up; the folder is made if missing.
       std::string error;

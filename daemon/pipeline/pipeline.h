@@ -188,6 +188,18 @@ class Pipeline {
   /// Whether camera `camera` turns images into silhouettes with a background
   /// model (its frames so far were images, not masks). Thread-safe.
   [[nodiscard]] bool HasBackgroundModel(int camera) const;
+
+  /// At least this share of a camera's view foreground after its background
+  /// model counts as mostly foreground (ForegroundHeavySince()).
+  static constexpr double kHeavyForegroundShare = 1.0 / 3.0;
+  /// Since when every frame camera `camera`'s background model classified
+  /// (learning done) has been at least kHeavyForegroundShare foreground;
+  /// nullopt while it is not, and for sources of masks. Long runs of it mean
+  /// a person close to the lens, or a light change the single gain could not
+  /// follow (part of the view changed, part not), whose changed part stays
+  /// foreground, occupied, until the background is learned again.
+  [[nodiscard]] std::optional<std::chrono::steady_clock::time_point> ForegroundHeavySince(
+      int camera) const;
   /// The file camera `camera` keeps its background in (background_dir).
   [[nodiscard]] std::string BackgroundFile(int camera) const;
 
@@ -217,6 +229,8 @@ class Pipeline {
     std::atomic<bool> has_model{false};  // `background` exists (HasBackgroundModel()).
     // BackgroundSaved(): 0 not yet, 1 saved, 2 failed to save.
     std::atomic<std::uint8_t> background_saved{0};
+    // ForegroundHeavySince() in steady-clock ns since its epoch; -1: not.
+    std::atomic<std::int64_t> heavy_since_ns{-1};
     // Silhouette work (one worker at a time).
     capture::CameraHealthMonitor health_monitor;
     common::ImageU8 foreground;

@@ -83,5 +83,34 @@ TEST(HealthLineTest, TrackerFigures) {
       << line;
 }
 
+// A camera mostly foreground is told once it has been so for the set time,
+// once per run; a new run (the share dropped, then rose again) is told again.
+TEST(ForegroundWatchTest, TellsOncePerRun) {
+  using Clock = ForegroundWatch::Clock;
+  using std::chrono::seconds;
+  const Clock::time_point t0{};
+  ForegroundWatch watch(2, seconds(60));
+  EXPECT_FALSE(watch.Due(0, std::nullopt, t0));
+  EXPECT_FALSE(watch.Due(0, t0, t0 + seconds(59)));
+  EXPECT_TRUE(watch.Due(0, t0, t0 + seconds(60)));
+  EXPECT_FALSE(watch.Due(0, t0, t0 + seconds(61))) << "once per run";
+  EXPECT_FALSE(watch.Due(1, t0 + seconds(30), t0 + seconds(61))) << "cameras apart";
+  EXPECT_FALSE(watch.Due(0, std::nullopt, t0 + seconds(62)));
+  EXPECT_FALSE(watch.Due(0, t0 + seconds(63), t0 + seconds(100)));
+  EXPECT_TRUE(watch.Due(0, t0 + seconds(63), t0 + seconds(123)));
+  // A run that restarts between two looks is a new one.
+  EXPECT_TRUE(watch.Due(1, t0 + seconds(30), t0 + seconds(90)));
+  EXPECT_TRUE(watch.Due(1, t0 + seconds(40), t0 + seconds(100)));
+}
+
+TEST(ForegroundWatchTest, Warning) {
+  EXPECT_EQ(ForegroundWarning("cam3", 60.4),
+            "cam3: a third of the view or more has been foreground for 60 s. If nobody stands "
+            "that close to the camera, the light has changed in part of the view (a bank of "
+            "lamps, daylight) while the rest kept it: the changed part stays foreground, "
+            "occupied, until the background is learned again with the cell empty (hullguardd "
+            "--config FILE --learn-background, then restart)");
+}
+
 }  // namespace
 }  // namespace hg::app

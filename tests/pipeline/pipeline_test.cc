@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <mutex>
 #include <random>
 #include <thread>
@@ -935,6 +936,100 @@ class RepeatingSource : public capture::CameraSource {
   capture::Frame scratch_;
   common::ImageRgb8 last_;
 };
+
+// A colour camera whose left half of the image goes dark on request (a bank
+// of lamps switched off over part of its view).
+class HalfDimmingSource : public capture::CameraSource {
+ public:
+  explicit HalfDimmingSource(std::unique_ptr<capture::CameraSource> inner)
+      : inner_(std::move(inner)) {}
+  bool Next(capture::Frame* frame, std::chrono::milliseconds timeout) override {
+    if (!inner_->Next(frame, timeout)) return false;
+    if (dim.load() && frame->kind == capture::FrameKind::kRgb) {
+      common::ImageRgb8& image = frame->rgb;
+      for (int v = 0; v < image.height; ++v) {
+        for (int u = 0; u < image.width / 2; ++u) {
+          std::uint8_t* p = image.Pixel(u, v);
+          for (int k = 0; k < 3; ++k) p[k] = static_cast<std::uint8_t>(p[k] / 2);
+        }
+      }
+    }
+    return true;
+  }
+  void Stop() override { inner_->Stop(); }
+  void BackgroundLearned() override { inner_->BackgroundLearned(); }
+  std::atomic<bool> dim{false};
+
+ private:
+  std::unique_ptr<capture::CameraSource> inner_;
+};
+
+// Half of one camera's view going dark while the other half keeps its light
+// is no light change a single gain follows: the gain keeps to the half that
+// kept its light (a person covering most of the view must not set it), and
+// the dark half stays foreground, occupied. The pipeline tells so
+// (ForegroundHeavySince(), hullguardd warns after a minute); the empty
+// cell's cameras do not.
+TEST(PipelineTest, PartOfTheViewGoingDarkIsForegroundAndTold) {
+  std::shared_ptr<sim::Scene> scene = StandingScene();
+  scene->people.clear();
+  const capture::SimClock clock = capture::SimClock::Now();
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 6;
+  options.publish_depth = 5;
+  options.background.learn_frames = 10;
+  std::vector<PipelineCamera> cameras;
+  HalfDimmingSource* dimming = nullptr;
+  for (int c = 0; c < static_cast<int>(scene->cameras.size()); ++c) {
+    auto sim = std::make_unique<capture::SimSource>(scene, c, 30.0, clock);
+    sim->EnableColour(0.5);
+    auto source = std::make_unique<HalfDimmingSource>(std::move(sim));
+    if (c == 0) dimming = source.get();
+    cameras.push_back({scene->cameras[c].model, std::move(source), 150});
+  }
+  Pipeline pipeline(options, std::move(cameras), {}, nullptr);
+  pipeline.Start();
+  auto wait_until = [](const std::function<bool()>& done) {
+    for (const auto give_up = std::chrono::steady_clock::now() + 20s;
+         std::chrono::steady_clock::now() < give_up; std::this_thread::sleep_for(10ms)) {
+      if (done()) return true;
+    }
+    return false;
+  };
+  // Learned, and 20 cycles of the empty cell after that.
+  std::uint64_t learned_at = 0;
+  ASSERT_TRUE(wait_until([&] {
+    const auto s = pipeline.Latest();
+    if (!s ||
+        !std::all_of(s->health.cameras.begin(), s->health.cameras.end(), [](const CameraHealth& h) {
+          return h.state == CameraState::kOk && !h.learning;
+        })) {
+      return false;
+    }
+    if (learned_at == 0) learned_at = s->sequence;
+    return s->sequence >= learned_at + 20;
+  })) << "the cameras never learned";
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_FALSE(pipeline.ForegroundHeavySince(c).has_value()) << "camera " << c;
+  }
+  const auto dimmed_at = std::chrono::steady_clock::now();
+  dimming->dim = true;
+  ASSERT_TRUE(wait_until([&] { return pipeline.ForegroundHeavySince(0).has_value(); }))
+      << "half a view dark was not told";
+  const auto since = *pipeline.ForegroundHeavySince(0);
+  EXPECT_GE(since, dimmed_at);
+  // It stays so (the dark half never becomes background on its own).
+  const std::uint64_t frames = pipeline.Latest()->health.cameras[0].frames;
+  ASSERT_TRUE(
+      wait_until([&] { return pipeline.Latest()->health.cameras[0].frames > frames + 30; }));
+  ASSERT_TRUE(pipeline.ForegroundHeavySince(0).has_value());
+  EXPECT_EQ(*pipeline.ForegroundHeavySince(0), since);
+  EXPECT_EQ(pipeline.Latest()->health.cameras[0].state, CameraState::kOk);
+  EXPECT_FALSE(pipeline.ForegroundHeavySince(1).has_value());
+  EXPECT_FALSE(pipeline.ForegroundHeavySince(2).has_value());
+  pipeline.Stop();
+}
 
 // A frame that repeats the one before (the simplest of the repeats the health
 // monitor finds among a camera's last four frames) is no new view of the cell: the camera
