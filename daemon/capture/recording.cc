@@ -1,5 +1,6 @@
 #include "capture/recording.h"
 
+#include <sys/stat.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
@@ -17,6 +18,7 @@
 
 #include "common/config_error.h"
 #include "common/input_file.h"
+#include "common/limits.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
 
@@ -30,8 +32,13 @@ constexpr int kRecordFormat = 1;
 constexpr char kIndexHeader[] = "frame,stamp_ns,device_stamp_ns,source_index,file";
 // Larger than any frame file (an RGB image of 16384 x 16384 is 768 MiB raw).
 constexpr std::streamoff kMaxFrameFileBytes = std::streamoff{1} << 30;
+/// Longest side of a frame a header may state (and common::ImageFits()).
+constexpr long long kMaxFrameSide = 1LL << 16;
 // Frame rates and spans a recording may claim.
 constexpr double kMaxRateHz = 1000.0;
+/// Frame sets a synth manifest may claim (9 hours at 30 Hz): each is listed
+/// in memory before any is read.
+constexpr int kMaxSynthFrames = 1'000'000;
 constexpr std::int64_t kMaxSpanNs = std::int64_t{30} * 24 * 3600 * 1'000'000'000;  // 30 days.
 
 std::string ManifestPath(const std::string& directory) {
@@ -164,10 +171,11 @@ RecordingCamera ReadSynth(const YAML::Node& root, const std::string& manifest,
     Fail(manifest, head, "synth",
          std::string("expected rate_hz, frames, masks, colour: ") + e.what());
   }
-  if (!(r.rate_hz > 0.0 && r.rate_hz <= kMaxRateHz) || frames < 1 || (!masks && !colour)) {
+  if (!(r.rate_hz > 0.0 && r.rate_hz <= kMaxRateHz) || frames < 1 || frames > kMaxSynthFrames ||
+      (!masks && !colour)) {
     Fail(manifest, head, "synth",
          "needs 0 < rate_hz <= " + std::to_string(static_cast<int>(kMaxRateHz)) +
-             ", frames >= 1 and masks or colour");
+             ", 1 <= frames <= " + std::to_string(kMaxSynthFrames) + " and masks or colour");
   }
   const YAML::Node c = CameraEntry(root, manifest, camera);
   r.time_offset_s = 0.0;
@@ -257,6 +265,17 @@ RecordingCamera ReadRecord(const YAML::Node& root, const std::string& manifest,
         name == camera
             ? (r.frames.empty() ? std::nullopt : std::optional<std::int64_t>(r.frames[0].stamp_ns))
             : FirstStamp(IndexPath(directory, name));
+    // Another camera's first stamp sets recording time 0 for all: one that
+    // means nothing (not after the epoch, or far from this camera's) would
+    // put this camera's frames at meaningless times.
+    if (first && name != camera) {
+      if (*first <= 0) throw ConfigError::At(IndexPath(directory, name), 2, "stamp_ns must be > 0");
+      if (!r.frames.empty() && std::abs(*first - r.frames[0].stamp_ns) > kMaxSpanNs) {
+        throw ConfigError::At(
+            IndexPath(directory, name), 2,
+            "stamp_ns more than 30 days from the first frame of camera '" + camera + "'");
+      }
+    }
     if (first && (!start || *first < *start)) start = first;
   }
   r.start_ns = start.value_or(0);
@@ -328,10 +347,23 @@ std::vector<std::string> RecordingCameraNames(const std::string& directory) {
   return names;
 }
 
+namespace {
+
+/// Decodes an encoded frame whose header passed LoadRecordedFrame's checks.
+bool DecodeRecordedFrame(const RecordingCamera& recording, std::size_t index,
+                         const cv::Mat& encoded, const common::ImageHeaderFacts& facts,
+                         Frame* frame);
+
+}  // namespace
+
 bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Frame* frame,
                        std::vector<unsigned char>* bytes, std::string* path) {
   if (index >= recording.frames.size()) return false;
   path->assign(recording.directory).append("/").append(recording.frames[index].file);
+  // Only a regular file: a named pipe would block the read until someone
+  // writes into it (and the capture thread with it), a device never ends.
+  struct stat status {};
+  if (::stat(path->c_str(), &status) != 0 || !S_ISREG(status.st_mode)) return false;
   std::ifstream in(*path, std::ios::binary | std::ios::ate);
   if (!in) return false;
   // A folder opens too, with a size of -1 or of everything: neither is a frame.
@@ -350,6 +382,29 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   }
   const cv::Mat encoded(1, static_cast<int>(bytes->size()), CV_8UC1, bytes->data());
   const common::ImageHeaderFacts facts = common::InspectImageHeader(encoded_bytes);
+  // A decoder allocates what the header states, and a file of a few bytes
+  // can state gigabytes: the size is checked before decoding (the recording's
+  // where it states one, else a camera's largest), and a format whose header
+  // size is not read here is not replayed.
+  const bool sized = recording.width > 0;
+  if (facts.width < 1 || facts.height < 1 || facts.width > kMaxFrameSide ||
+      facts.height > kMaxFrameSide ||
+      !common::ImageFits(static_cast<int>(facts.width), static_cast<int>(facts.height)) ||
+      (sized && (facts.width != recording.width || facts.height != recording.height))) {
+    return false;
+  }
+  try {
+    return DecodeRecordedFrame(recording, index, encoded, facts, frame);
+  } catch (const cv::Exception&) {  // The decoder's own refusal (damaged data, memory).
+    return false;
+  }
+}
+
+namespace {
+
+bool DecodeRecordedFrame(const RecordingCamera& recording, std::size_t index,
+                         const cv::Mat& encoded, const common::ImageHeaderFacts& facts,
+                         Frame* frame) {
   // A keyed-out background (PNG tRNS) is dropped by the decoder: the frame
   // would read as drawn, not as meant. Unusable, as a damaged one.
   if (facts.png_colour_key) return false;
@@ -372,7 +427,10 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   if (recording.kind != FrameKind::kRgb) {
     // ANYDEPTH: a 16-bit image stays 16-bit and is refused below, where a plain
     // GRAYSCALE decode would scale 255 down to 0 (foreground read as background).
-    cv::Mat img = cv::imdecode(encoded, cv::IMREAD_GRAYSCALE | cv::IMREAD_ANYDEPTH);
+    // ANYCOLOR: a colour image stays colour and is refused below, where a
+    // GRAYSCALE decode would make a grey mask of a camera image (a person
+    // darker than the threshold read as background).
+    cv::Mat img = cv::imdecode(encoded, cv::IMREAD_ANYCOLOR | cv::IMREAD_ANYDEPTH);
     if (img.empty() || img.type() != CV_8UC1 || !img.isContinuous()) return false;
     // Binary PGM samples are not scaled to 8 bits: a 0/1 mask (maxval 1)
     // would read as all background.
@@ -385,7 +443,9 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
     frame->grey.height = img.rows;
     frame->grey.pixels.assign(img.data, img.data + img.total());
   } else {
-    cv::Mat img = cv::imdecode(encoded, cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
+    // ANYCOLOR: a grey image is refused (the colours that tell a person from
+    // the background are not in it), not spread over three channels.
+    cv::Mat img = cv::imdecode(encoded, cv::IMREAD_ANYCOLOR | cv::IMREAD_ANYDEPTH);
     if (img.empty() || img.type() != CV_8UC3) return false;
     if (facts.pnm_maxval > 0 && facts.pnm_maxval < 255) {
       img.convertTo(img, -1, 255.0 / facts.pnm_maxval);
@@ -400,6 +460,8 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   }
   return true;
 }
+
+}  // namespace
 
 // ---------------------------------------------------------------------------
 // RecordingWriter.

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cctype>
 #include <cerrno>
+#include <cstdint>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <initializer_list>
@@ -22,6 +24,14 @@ std::ifstream OpenInputFile(const std::string& path, const std::string& what,
   }
   if (status.type() == std::filesystem::file_type::directory) {
     throw ConfigError::At(path, 0, cannot + ": is a folder, not a file");
+  }
+  // A named pipe would block the read until someone writes into it (a stop
+  // signal unanswered meanwhile), a device may never end.
+  if (status.type() == std::filesystem::file_type::fifo ||
+      status.type() == std::filesystem::file_type::socket ||
+      status.type() == std::filesystem::file_type::character ||
+      status.type() == std::filesystem::file_type::block) {
+    throw ConfigError::At(path, 0, cannot + ": not a regular file (a pipe, socket or device)");
   }
   errno = 0;
   std::ifstream in(path, mode | std::ios::in);
@@ -71,6 +81,68 @@ bool ReadPnmHeader(const unsigned char* bytes, std::size_t n, std::size_t* at,
   return true;
 }
 
+/// Width and height of a PNM header (P1 to P6) into `size`.
+bool ReadPnmSize(const unsigned char* bytes, std::size_t n, long long (&size)[2]) {
+  std::size_t at = 2;
+  for (long long& number : size) {
+    number = 0;
+    while (at < n && (std::isspace(bytes[at]) != 0 || bytes[at] == '#')) {
+      if (bytes[at] == '#') {
+        while (at < n && bytes[at] != '\n') ++at;
+      } else {
+        ++at;
+      }
+    }
+    const std::size_t start = at;
+    while (at < n && at - start < 9 && std::isdigit(bytes[at]) != 0) {
+      number = number * 10 + (bytes[at] - '0');
+      ++at;
+    }
+    if (at == start) return false;
+  }
+  return true;
+}
+
+std::uint32_t BigEndian32(const unsigned char* b) {
+  return (std::uint32_t{b[0]} << 24) | (std::uint32_t{b[1]} << 16) | (std::uint32_t{b[2]} << 8) |
+         std::uint32_t{b[3]};
+}
+
+std::int32_t LittleEndian32(const unsigned char* b) {
+  return static_cast<std::int32_t>(std::uint32_t{b[0]} | (std::uint32_t{b[1]} << 8) |
+                                   (std::uint32_t{b[2]} << 16) | (std::uint32_t{b[3]} << 24));
+}
+
+/// The size a JPEG's start-of-frame segment states; false without one.
+bool ReadJpegSize(const unsigned char* bytes, std::size_t n, long long* width, long long* height) {
+  std::size_t at = 2;
+  while (at + 4 <= n) {
+    if (bytes[at] != 0xFF) return false;
+    const unsigned char marker = bytes[at + 1];
+    if (marker == 0xFF) {  // Fill byte.
+      ++at;
+      continue;
+    }
+    if (marker == 0xD8 || marker == 0x01 || (marker >= 0xD0 && marker <= 0xD7)) {
+      at += 2;  // No segment follows.
+      continue;
+    }
+    if (marker == 0xD9 || marker == 0xDA) return false;  // End, or the scan: no frame header.
+    const std::size_t length = (std::size_t{bytes[at + 2]} << 8) | bytes[at + 3];
+    const bool frame_header =
+        marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC;
+    if (frame_header) {
+      if (length < 7 || at + 9 > n) return false;
+      *height = (static_cast<long long>(bytes[at + 5]) << 8) | bytes[at + 6];
+      *width = (static_cast<long long>(bytes[at + 7]) << 8) | bytes[at + 8];
+      return true;
+    }
+    if (length < 2) return false;
+    at += 2 + length;
+  }
+  return false;
+}
+
 }  // namespace
 
 ImageHeaderFacts InspectImageHeader(std::string_view text) {
@@ -83,6 +155,8 @@ ImageHeaderFacts InspectImageHeader(std::string_view text) {
     // alpha, 6 RGBA.
     if (n >= 26 && std::memcmp(bytes + 12, "IHDR", 4) == 0) {
       facts.png_alpha = bytes[25] == 4 || bytes[25] == 6;
+      facts.width = BigEndian32(bytes + 16);
+      facts.height = BigEndian32(bytes + 20);
     }
     // Chunks before the image data (tRNS must precede IDAT).
     std::size_t at = sizeof(kPngSignature);
@@ -100,6 +174,29 @@ ImageHeaderFacts InspectImageHeader(std::string_view text) {
     std::size_t at = 0;
     long long numbers[3];
     if (ReadPnmHeader(bytes, n, &at, numbers)) facts.pnm_maxval = static_cast<int>(numbers[2]);
+  }
+  if (n >= 2 && bytes[0] == 'P' && bytes[1] >= '1' && bytes[1] <= '6') {
+    long long size[2];
+    if (ReadPnmSize(bytes, n, size)) {
+      facts.width = size[0];
+      facts.height = size[1];
+    }
+  } else if (n >= 26 && bytes[0] == 'B' && bytes[1] == 'M') {
+    const std::int32_t header = LittleEndian32(bytes + 14);
+    if (header == 12) {  // BITMAPCOREHEADER: 16-bit sizes.
+      facts.width = bytes[18] | (bytes[19] << 8);
+      facts.height = bytes[20] | (bytes[21] << 8);
+    } else if (header >= 40) {
+      facts.width = std::abs(static_cast<long long>(LittleEndian32(bytes + 18)));
+      // Negative: rows stored top-down.
+      facts.height = std::abs(static_cast<long long>(LittleEndian32(bytes + 22)));
+    }
+  } else if (n >= 4 && bytes[0] == 0xFF && bytes[1] == 0xD8) {
+    long long width = 0, height = 0;
+    if (ReadJpegSize(bytes, n, &width, &height)) {
+      facts.width = width;
+      facts.height = height;
+    }
   }
   return facts;
 }

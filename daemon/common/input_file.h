@@ -39,6 +39,12 @@ struct ImageHeaderFacts {
   /// A PNG with an alpha channel (grey + alpha or RGBA), which a grey or
   /// colour decode drops.
   bool png_alpha = false;
+  /// The size the header states, read without decoding: PNG, PBM/PGM/PPM
+  /// (P1 to P6), BMP and JPEG; 0 x 0 for other formats or a header that
+  /// cannot be read. A decoder allocates what the header states, so a file of
+  /// a few bytes can ask for gigabytes: check this first.
+  long long width = 0;
+  long long height = 0;
 };
 [[nodiscard]] ImageHeaderFacts InspectImageHeader(std::string_view bytes);
 

@@ -9,8 +9,10 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <string>
+#include <thread>
 
 #include "common/log.h"
 #include "octree/camera_view.h"
@@ -138,10 +140,26 @@ void Pipeline::Stop() {
 
 void Pipeline::CaptureLoop(int camera) {
   CameraRuntime& c = *cameras_[camera];
+  bool told = false;  // That the source threw.
   while (!stop_.load(std::memory_order_relaxed)) {
     if (heartbeats_ != nullptr) heartbeats_->Beat(c.heartbeat);
     capture::Frame& frame = c.raw.BeginWrite();
-    if (c.source->Next(&frame, std::chrono::milliseconds(50))) {
+    bool delivered = false;
+    try {
+      delivered = c.source->Next(&frame, std::chrono::milliseconds(50));
+    } catch (const std::exception& e) {
+      // A source is to count what it cannot read and go on; one that throws
+      // (out of memory, a library's own error) loses that frame, not the
+      // daemon: counted corrupt, said once, and the camera turns stale if it
+      // goes on.
+      c.corrupt.fetch_add(1, std::memory_order_relaxed);
+      if (!told) {
+        told = true;
+        log::Error("{}: the camera source failed to deliver a frame: {}", c.model.name, e.what());
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    if (delivered) {
       if (black_box_ != nullptr) black_box_->Push(camera, frame);
       c.raw.Publish();
     }

@@ -6,6 +6,7 @@
 // before.
 #include "capture/recording.h"
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -527,7 +528,7 @@ TEST_F(RecordingTest, PgmMasksWithASmallMaxvalAreScaled) {
 
 // A mask frame with transparent pixels (an alpha channel, which the grey
 // decode drops: a keyed-out background would read as drawn) is unreadable;
-// an opaque alpha channel changes nothing.
+// so is an opaque RGBA one: a colour image is no mask.
 TEST_F(RecordingTest, MaskFramesWithTransparentPixelsAreUnreadable) {
   fs::create_directories(dir_ / "masks" / "a");
   std::ofstream(dir_ / "manifest.yaml")
@@ -541,8 +542,102 @@ TEST_F(RecordingTest, MaskFramesWithTransparentPixelsAreUnreadable) {
   ReplaySource source(ReadRecordingCamera(dir_.string(), "a"), SimClock{});
   Frame f;
   EXPECT_FALSE(source.ReadFrame(0, &f));
-  ASSERT_TRUE(source.ReadFrame(1, &f));
-  EXPECT_EQ(f.grey.pixels, std::vector<std::uint8_t>(6 * 4, 255));
+  EXPECT_FALSE(source.ReadFrame(1, &f));
+}
+
+// A frame must be of its camera's kind: a colour image where a mask or a
+// grey image should be (a grey decode would make a mask of a camera image, a
+// person darker than the threshold free) is unreadable, and so is a grey
+// image for a colour camera; the frames of the right kind read.
+TEST_F(RecordingTest, FramesOfAnotherColourKindAreUnreadable) {
+  fs::create_directories(dir_ / "masks" / "a");
+  fs::create_directories(dir_ / "colour" / "a");
+  const cv::Mat grey(4, 6, CV_8UC1, cv::Scalar(255));
+  const cv::Mat colour(4, 6, CV_8UC3, cv::Scalar(40, 90, 200));
+  for (const char* folder : {"masks", "colour"}) {
+    ASSERT_TRUE(cv::imwrite((dir_ / folder / "a" / "000000.png").string(), grey));
+    ASSERT_TRUE(cv::imwrite((dir_ / folder / "a" / "000001.png").string(), colour));
+  }
+  for (const bool masks : {true, false}) {
+    std::ofstream(dir_ / "manifest.yaml")
+        << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 2, masks: "
+        << (masks ? "true" : "false") << ", colour: " << (masks ? "false" : "true")
+        << "}\ncameras:\n  - {name: a}\n";
+    ReplaySource source(ReadRecordingCamera(dir_.string(), "a"), SimClock{});
+    Frame f;
+    EXPECT_EQ(source.ReadFrame(0, &f), masks) << "grey, masks " << masks;
+    EXPECT_EQ(source.ReadFrame(1, &f), !masks) << "colour, masks " << masks;
+  }
+}
+
+// A frame file of a few bytes whose header states a huge image is refused
+// before decoding (a decoder would allocate what it states: 1 GiB here, or
+// abort the daemon on an allocation failure), and so is one of another size
+// than the recording states; a named pipe in place of a frame is refused
+// at once instead of blocking the read until someone writes into it.
+TEST_F(RecordingTest, HugeHeadersAndPipesAreRefusedBeforeReading) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 4, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a}\n";
+  // A whole, valid PNG of 32768 x 32768 grey pixels (IHDR, an empty IDAT, IEND).
+  const auto chunk = [](const std::string& type, const std::string& data) {
+    std::string c;
+    for (int shift = 24; shift >= 0; shift -= 8) c += static_cast<char>(data.size() >> shift);
+    c += type + data + std::string(4, '\0');  // The CRC is not checked before decoding.
+    return c;
+  };
+  const std::string ihdr = std::string("\0\0\x80\0\0\0\x80\0", 8) + std::string("\x08\0\0\0\0", 5);
+  std::ofstream(dir_ / "masks" / "a" / "000000.png", std::ios::binary)
+      << "\x89PNG\r\n\x1a\n"
+      << chunk("IHDR", ihdr) << chunk("IDAT", "")
+      << std::string("\0\0\0\0IEND\xae\x42\x60\x82", 12);
+  // A JPEG and a PGM stating 60000 x 60000.
+  std::ofstream(dir_ / "masks" / "a" / "000001.png", std::ios::binary)
+      << std::string("\xff\xd8\xff\xc0\0\x0b\x08\xea\x60\xea\x60\x01\x01\x11\0\xff\xd9", 17);
+  std::ofstream(dir_ / "masks" / "a" / "000002.png", std::ios::binary) << "P5\n60000 60000\n255\n"
+                                                                       << std::string(16, '\0');
+  ASSERT_EQ(::mkfifo((dir_ / "masks" / "a" / "000003.png").c_str(), 0600), 0);
+  RecordingCamera rec = ReadRecordingCamera(dir_.string(), "a");
+  Frame f;
+  std::vector<unsigned char> bytes;
+  std::string path;
+  for (std::size_t i = 0; i < 4; ++i)
+    EXPECT_FALSE(LoadRecordedFrame(rec, i, &f, &bytes, &path)) << i;
+  EXPECT_LT(bytes.capacity(), 4096U) << "read only the few bytes of the files";
+  // A stated size (record layout) refuses a frame of another size.
+  ASSERT_TRUE(cv::imwrite((dir_ / "masks" / "a" / "000000.png").string(),
+                          cv::Mat(4, 6, CV_8UC1, cv::Scalar(255))));
+  EXPECT_TRUE(LoadRecordedFrame(rec, 0, &f, &bytes, &path));
+  rec.width = 6;
+  rec.height = 5;
+  EXPECT_FALSE(LoadRecordedFrame(rec, 0, &f, &bytes, &path));
+  // A pipe for the manifest is an error naming it, not a read that blocks.
+  fs::remove(dir_ / "manifest.yaml");
+  ASSERT_EQ(::mkfifo((dir_ / "manifest.yaml").c_str(), 0600), 0);
+  try {
+    (void)ReadRecordingCamera(dir_.string(), "a");
+    ADD_FAILURE() << "expected a ConfigError";
+  } catch (const common::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("manifest.yaml"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+  }
+}
+
+// A synth manifest claiming more frame sets than any recording holds is an
+// error naming the file, not an allocation of gigabytes.
+TEST_F(RecordingTest, ASynthManifestOfBillionsOfFramesIsRefused) {
+  fs::create_directories(dir_ / "masks" / "a");
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 2000000000, masks: true, "
+         "colour: false}\ncameras:\n  - {name: a}\n";
+  try {
+    (void)ReadRecordingCamera(dir_.string(), "a");
+    ADD_FAILURE() << "expected a ConfigError";
+  } catch (const common::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("manifest.yaml:1"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("1 <= frames <= 1000000"), std::string::npos) << e.what();
+  }
 }
 
 // A mask frame in Sun raster, which OpenCV decodes as all zeros when 8-bit

@@ -149,6 +149,48 @@ TEST_F(RecordCliTest, RecordsSimCamerasAndReplaysDeterministically) {
   EXPECT_NE(again.err.find("already holds a recording"), std::string::npos) << again.err;
 }
 
+// A recording with a silence of days in it (every camera's next frame two
+// days on) replays at once: the cycles of the silence, every camera stale,
+// are counted (as degraded), not run one by one for hours.
+TEST_F(RecordCliTest, ReplayCountsASilenceOfDaysWithoutRunningIt) {
+  const auto r =
+      Hullguard("record --config " + Path("sim.yaml") + " --out " + Path("rec") + " --seconds 0.5");
+  ASSERT_EQ(r.code, 0) << r.out << r.err;
+  constexpr std::int64_t kTwoDaysNs = std::int64_t{2} * 24 * 3600 * 1'000'000'000;
+  for (const char* camera : {"cam0", "cam1", "cam2"}) {
+    const fs::path index = dir_ / "rec" / "frames" / camera / "index.csv";
+    std::string text = ReadFile(index.string());
+    ASSERT_FALSE(text.empty());
+    const std::size_t line = text.rfind('\n', text.size() - 2) + 1;
+    std::vector<std::string> field;
+    std::stringstream row(text.substr(line, text.size() - line - 1));
+    for (std::string cell; std::getline(row, cell, ',');) field.push_back(cell);
+    ASSERT_EQ(field.size(), 5U) << text.substr(line);
+    std::ofstream(index, std::ios::app)
+        << std::stoll(field[0]) + 1 << ',' << std::stoll(field[1]) + kTwoDaysNs << ",,"
+        << std::stoll(field[3]) + 1 << ',' << field[4] << '\n';
+  }
+  std::ofstream(Path("replay_rec.yaml"))
+      << Config("{type: replay, directory: " + Path("rec") + "}");
+  const auto start = std::chrono::steady_clock::now();
+  const auto replay =
+      Hullguard("replay --config " + Path("replay_rec.yaml") + " --recording " + Path("rec"));
+  EXPECT_EQ(replay.code, 0) << replay.out << replay.err;
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(60));
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      replay.out, m,
+      std::regex("replay: ([0-9]+) cycles .* ([0-9]+) cycles degraded \\(([0-9]+) of them in "
+                 "silences of every camera, counted, not run\\)")))
+      << replay.out;
+  const long long cycles = std::stoll(m[1]);
+  const long long degraded = std::stoll(m[2]);
+  const long long skipped = std::stoll(m[3]);
+  EXPECT_GT(cycles, 2LL * 24 * 3600 * 30) << "two days at 30 Hz";
+  EXPECT_GT(skipped, cycles - 100);
+  EXPECT_GE(degraded, skipped);
+}
+
 // Simulated colour cameras recorded: the people come in after the empty
 // period (nothing learns a background while recording, so nothing may hold
 // them back longer, as the daemon's models do).

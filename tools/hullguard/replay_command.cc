@@ -379,11 +379,23 @@ int RunReplay(const ReplayFlags& f) {
     // capture order (the background model sees them all, as in the daemon).
     const double period_ns = 1e9 / config.timing.rate_hz;
     // The last cycle at or after the last frame: every frame is fed.
-    int cycles = static_cast<int>(std::ceil(static_cast<double>(end_ns) / period_ns)) + 1;
-    if (f.frames > 0) cycles = std::min(cycles, f.frames);
+    std::int64_t cycles =
+        static_cast<std::int64_t>(std::ceil(static_cast<double>(end_ns) / period_ns)) + 1;
+    if (f.frames > 0) cycles = std::min<std::int64_t>(cycles, f.frames);
+    // Where every camera has timed out and the next frame of any is further
+    // off than the longest timeout and a second, the cycles until just before
+    // it are all alike (every camera stale, degraded): they are counted, not
+    // run, so that a recording with a gap of days does not replay for hours.
+    int longest_timeout_ms = 0;
+    for (const app::CameraConfig& c : config.cameras) {
+      longest_timeout_ms = std::max(longest_timeout_ms, c.timeout_ms);
+    }
+    const std::int64_t skip_gap_ns = (std::int64_t{longest_timeout_ms} + 1000) * 1'000'000;
+    std::int64_t skipped = 0;
     std::vector<int> next(readers.size(), 0);
-    for (int k = 0; k < cycles; ++k) {
-      const auto now_ns = static_cast<std::int64_t>(std::llround(k * period_ns));
+    for (std::int64_t k = 0; k < cycles; ++k) {
+      const auto now_ns =
+          static_cast<std::int64_t>(std::llround(static_cast<double>(k) * period_ns));
       for (std::size_t c = 0; c < readers.size(); ++c) {
         const capture::RecordingCamera& r = readers[c]->recording();
         for (; next[c] < readers[c]->frames() && r.frames[next[c]].time_ns <= now_ns; ++next[c]) {
@@ -397,10 +409,38 @@ int RunReplay(const ReplayFlags& f) {
       last = pipeline.Step(now_ns);
       degraded += last->health.degraded ? 1 : 0;
       AddSnapshot(*last, &digest);
+      const bool all_stale = std::none_of(last->health.cameras.begin(), last->health.cameras.end(),
+                                          [](const pipeline::CameraHealth& h) {
+                                            return h.state == pipeline::CameraState::kOk ||
+                                                   h.state == pipeline::CameraState::kStarting;
+                                          });
+      std::optional<std::int64_t> next_ns;
+      for (std::size_t c = 0; c < readers.size(); ++c) {
+        if (next[c] < readers[c]->frames()) {
+          const std::int64_t t = readers[c]->recording().frames[next[c]].time_ns;
+          next_ns = next_ns ? std::min(*next_ns, t) : t;
+        }
+      }
+      if (all_stale && next_ns && *next_ns - now_ns > skip_gap_ns) {
+        // Cycles k + 1 .. before - 1 are skipped; `before`, at or just before
+        // the next frame, runs.
+        const auto before = std::min<std::int64_t>(
+            cycles,
+            static_cast<std::int64_t>(std::floor(static_cast<double>(*next_ns) / period_ns)));
+        if (before - 1 > k) {
+          skipped += before - 1 - k;
+          degraded += static_cast<std::uint64_t>(before - 1 - k);
+          k = before - 1;
+        }
+      }
     }
-    std::printf("replay: %d cycles at %g Hz over %.3f s of %zu recorded cameras, %" PRIu64
-                " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
+    std::printf("replay: %" PRId64 " cycles at %g Hz over %.3f s of %zu recorded cameras, %" PRIu64
+                " frames missing or unreadable, %" PRIu64 " cycles degraded",
                 cycles, config.timing.rate_hz, end_ns * 1e-9, readers.size(), missing, degraded);
+    if (skipped > 0) {
+      std::printf(" (%" PRId64 " of them in silences of every camera, counted, not run)", skipped);
+    }
+    std::printf("\n");
   }
   if (f.digest || !f.expect.empty()) std::printf("digest %s\n", digest.Hex().c_str());
   if (!f.snapshot.empty() && last) {
