@@ -249,48 +249,78 @@ class CameraRays {
     max_tan_alpha_ = std::tan(alpha) * (1.0 + 1e-9);
   }
 
-  void InitDistorted(const geometry::CameraModel& camera) {
+  /// Whether the lens model keeps a positive Jacobian determinant all along
+  /// the straight path from the optical axis to the normalised point `x`
+  /// (sampled): a root of the inversion past a fold is no ray of the lens,
+  /// even where the polynomial rises again.
+  static bool OnPrimaryBranch(const std::array<double, 5>& k, const Vector2d& x) {
+    constexpr int kSamples = 1024;
+    for (int i = 1; i <= kSamples; ++i) {
+      Matrix2d jacobian;
+      (void)geometry::ApplyDistortion(k, x * (static_cast<double>(i) / kSamples), &jacobian);
+      if (!(jacobian.determinant() > 0.0)) return false;
+    }
+    return true;
+  }
+
+  /// Lens-free rays of the image points (u0 + i, v0 + j), i < nu, j < nv
+  /// (NaN where there is none), on the lens model's primary branch: solved
+  /// outward from the point nearest the principal point, whose root is
+  /// checked along its path from the axis, each further point from its inner
+  /// neighbour's solution (continuation). A point whose inner neighbour has
+  /// no ray gets none: started afresh (from its distorted position, or from
+  /// a neighbour across a fold) the solver may settle on a root of another
+  /// branch, whose ray the lens never sees through this pixel.
+  std::vector<Vector2d> InvertGrid(const geometry::CameraModel& camera, double u0, double v0,
+                                   int nu, int nv) const {
     const Matrix3d K_inv = camera.K.inverse();
     auto normalised = [&K_inv](double u, double v) {
       return Vector2d(K_inv(0, 0) * u + K_inv(0, 1) * v + K_inv(0, 2),
                       K_inv(1, 1) * v + K_inv(1, 2));
     };
+    std::vector<Vector2d> out(static_cast<std::size_t>(nu) * nv, Vector2d::Constant(std::nan("")));
+    auto at = [&](int i, int j) -> Vector2d& { return out[static_cast<std::size_t>(j) * nu + i]; };
+    auto solve = [&](int i, int j, const Vector2d& start) {
+      if (!start.allFinite()) return;
+      Vector2d x = start;
+      if (geometry::InvertDistortion(camera.distortion, normalised(u0 + i, v0 + j), &x)) {
+        at(i, j) = x;
+      }
+    };
+    const auto nearest = [](double c, int n) {
+      return static_cast<int>(std::clamp(std::round(c), 0.0, static_cast<double>(n - 1)));
+    };
+    const int i0 = nearest(cx_ - u0, nu);
+    const int j0 = nearest(cy_ - v0, nv);
+    solve(i0, j0, normalised(u0 + i0, v0 + j0));
+    if (at(i0, j0).allFinite() && !OnPrimaryBranch(camera.distortion, at(i0, j0))) {
+      at(i0, j0) = Vector2d::Constant(std::nan(""));
+    }
+    for (const int step : {-1, 1}) {
+      for (int j = j0 + step; j >= 0 && j < nv; j += step) solve(i0, j, at(i0, j - step));
+    }
+    for (int j = 0; j < nv; ++j) {
+      for (const int step : {-1, 1}) {
+        for (int i = i0 + step; i >= 0 && i < nu; i += step) solve(i, j, at(i - step, j));
+      }
+    }
+    return out;
+  }
+
+  void InitDistorted(const geometry::CameraModel& camera) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
+    // Pixel centres, u = -1..width, v = -1..height.
+    const std::vector<Vector2d> centres = InvertGrid(camera, -1.0, -1.0, grid_w_, grid_h_);
     xs_.assign(static_cast<std::size_t>(grid_w_) * grid_h_, nan);
     ys_.assign(xs_.size(), nan);
-    // Pixel centres, each row started from the distorted position and then
-    // from the left neighbour's solution (fast convergence).
-    for (int v = -1; v <= height_; ++v) {
-      Vector2d guess = normalised(-1, v);
-      for (int u = -1; u <= width_; ++u) {
-        const Vector2d xd = normalised(u, v);
-        Vector2d x = std::isfinite(guess.x()) ? guess : xd;
-        if (geometry::InvertDistortion(camera.distortion, xd, &x)) {
-          xs_[GridIndex(u, v)] = static_cast<float>(x.x());
-          ys_[GridIndex(u, v)] = static_cast<float>(x.y());
-          guess = x;
-        } else {
-          guess = xd;
-        }
-      }
+    for (std::size_t i = 0; i < centres.size(); ++i) {
+      if (!centres[i].allFinite()) continue;
+      xs_[i] = static_cast<float>(centres[i].x());
+      ys_[i] = static_cast<float>(centres[i].y());
     }
     // Pixel corners (u - 0.5, v - 0.5), u = 0..width, v = 0..height.
     const int cw = width_ + 1;
-    std::vector<Vector2d> corners(static_cast<std::size_t>(cw) * (height_ + 1),
-                                  Vector2d::Constant(std::nan("")));
-    for (int v = 0; v <= height_; ++v) {
-      Vector2d guess = normalised(-0.5, v - 0.5);
-      for (int u = 0; u <= width_; ++u) {
-        const Vector2d xd = normalised(u - 0.5, v - 0.5);
-        Vector2d x = std::isfinite(guess.x()) ? guess : xd;
-        if (geometry::InvertDistortion(camera.distortion, xd, &x)) {
-          corners[static_cast<std::size_t>(v) * cw + u] = x;
-          guess = x;
-        } else {
-          guess = xd;
-        }
-      }
-    }
+    const std::vector<Vector2d> corners = InvertGrid(camera, -0.5, -0.5, cw, height_ + 1);
     // Per pixel: the cone reaches kDistortedConeSafety times past the farthest
     // corner ray; tiles keep the largest. Pixels without a valid cone lose their
     // centre ray (they are drawn as foreground by the renderer).
@@ -447,11 +477,16 @@ class CameraRays {
 // Rounding (float): each component of P and Q comes from camera-frame
 // coordinates of a few metres, so it is off by ~1e-7 of that scale, i.e. the
 // distances tested are off by ~1e-6 m; the radius margin of 1e-5 (D + 1 m)
-// covers that tenfold. A C - B^2 cancels only down to the squared length of the
-// segment's part seen across the ray, far above its rounding. Where B or A are
-// rounded across a case boundary, the interior minimum and the end value agree
-// to the same order. Where E vanishes in rounding (the ray along the segment),
-// the interior test can only pass spuriously, which adds pixels.
+// covers that tenfold. The interior minimum is tested as |A P - B E|^2 <=
+// R^2 |u|^2 A^2 (A P - B E = A (P + s E) at s = -B / A), whose components
+// carry a rounding of ~1e-7 A |P| (|B| <= |P| |E|, |E|^2 = A), the same
+// distance error as P's; not as A C - B^2 <= R^2 |u|^2 A: that difference
+// of two products of the ends' distances cancels with an error of ~1e-7 A C,
+// which for a long, thin part (ends metres off the ray, a radius of a
+// millimetre) exceeds R^2 A. Within the loader's coordinates (1e6 m) the
+// products stay far below float's range. Where B or A are rounded across a case boundary, the
+// interior minimum and the end value agree to the same order. Where E vanishes in rounding (the ray
+// along the segment), the interior test can only pass spuriously, which adds pixels.
 
 struct SegmentF {
   float ax, ay, az, bx, by, bz;
@@ -487,7 +522,15 @@ void MarkSpan(const SegmentF& s, float r2, float near, const float* __restrict x
     const float cb = q0 * q0 + q1 * q1 + q2 * q2;
     const float aa = e0 * e0 + e1 * e1 + e2 * e2;
     const float bb = p0 * e0 + p1 * e1 + p2 * e2;
-    bool hit = (ca <= t) | (cb <= t) | ((bb < 0.0F) & (-bb < aa) & (aa * ca - bb * bb <= t * aa));
+    // The interior minimum |P + s E|^2 at s = -B / A, times A^2: the squared
+    // length of the vector A P - B E (not (A C - B^2) A, whose cancellation
+    // loses the squared distance of the ends, not of the closest point: a
+    // thin cable 10 m long had holes). No division: the loop stays vectorised.
+    const float v0 = aa * p0 - bb * e0;
+    const float v1 = aa * p1 - bb * e1;
+    const float v2 = aa * p2 - bb * e2;
+    bool hit = (ca <= t) | (cb <= t) |
+               ((bb < 0.0F) & (-bb < aa) & (v0 * v0 + v1 * v1 + v2 * v2 <= t * aa * aa));
     if constexpr (kOcclusion) {
       hit = hit & (near <= thr[i]);
     }
