@@ -1,5 +1,7 @@
 #include "app/config.h"
 
+#include <unistd.h>
+
 #include <algorithm>
 #include <charconv>
 #include <cmath>
@@ -358,8 +360,9 @@ const Field<ReplaySourceConfig> kReplayFields[] = {
      .member = &ReplaySourceConfig::preload,
      .meaning = "Read and decode every frame of the camera into memory at start-up (width x "
                 "height bytes per frame, three times that for RGB; the log states the total); "
-                "frames are then delivered by a copy, without disk or decoder. For soak runs "
-                "and for load tests of the daemon's own cost."},
+                "frames are then delivered by a copy, without disk or decoder; refused at load "
+                "when they need more than half of the machine's memory. For soak runs and for "
+                "load tests of the daemon's own cost."},
     {.key = "loop",
      .member = &ReplaySourceConfig::loop,
      .meaning = "After the last frame play again from the frame at `loop_start_s`, for ever; "
@@ -1369,6 +1372,27 @@ void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Item& 
                   std::to_string(h) + ", the camera block is " + std::to_string(model->width) +
                   "x" + std::to_string(model->height) + " (" + path + ")");
       return;
+    }
+    if (replay.preload) {
+      // Every frame decoded in memory: more than half the machine's memory
+      // would end the daemon at start-up (or the machine's other work).
+      const double mib =
+          static_cast<double>(rec.frames.size()) * w * h * (rgb ? 3 : 1) / (1024.0 * 1024.0);
+      const double memory_mib = static_cast<double>(sysconf(_SC_PHYS_PAGES)) *
+                                static_cast<double>(sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024.0);
+      if (memory_mib > 0.0 && mib > 0.5 * memory_mib) {
+        std::string key = directory.path;
+        if (const std::size_t at = key.rfind("directory"); at != std::string::npos) {
+          key.replace(at, std::string("directory").size(), "preload");
+        }
+        r.Error(directory.line, key,
+                std::to_string(rec.frames.size()) + " frames of camera '" + replay.camera +
+                    "' need " + FormatNumber(std::round(mib)) +
+                    " MiB preloaded, more than half of this machine's memory (" +
+                    FormatNumber(std::round(memory_mib)) +
+                    " MiB); play them from disk (preload: false)");
+        return;
+      }
     }
     const std::string cameras_file =
         (std::filesystem::path(replay.directory) / "cameras.yaml").string();

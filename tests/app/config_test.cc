@@ -789,6 +789,25 @@ TEST(ConfigReplayTest, TheRecordingIsOpenedAtValidation) {
   EXPECT_EQ(ErrorIn(dir, Replace(config, "directory: rec}}",
                                  "directory: rec, loop: true, preload: true}}")),
             "");
+  // Unless the frames need more than half the machine's memory: a million
+  // frames of 320 x 180 are 55 GiB.
+  {
+    const std::string manifest = dir.Path("rec/manifest.yaml");
+    const std::string kept = ReadFile(manifest);
+    std::ofstream(manifest) << Replace(kept, "frames: 12", "frames: 1000000");
+    error = ErrorIn(dir, Replace(config, "directory: rec}}", "directory: rec, preload: true}}"));
+    const double memory_mib = static_cast<double>(sysconf(_SC_PHYS_PAGES)) *
+                              static_cast<double>(sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024.0);
+    if (1e6 * 320 * 180 / (1024.0 * 1024.0) > 0.5 * memory_mib) {
+      EXPECT_NE(error.find("c.yaml:10: cameras[0].source.preload: 1000000 frames of camera 'cam0' "
+                           "need 54932 MiB preloaded, more than half of this machine's memory ("),
+                std::string::npos)
+          << error;
+    } else {
+      EXPECT_EQ(error, "");
+    }
+    std::ofstream(manifest) << kept;
+  }
   const std::string late_loop =
       Replace(config, "directory: rec}}", "directory: rec, loop: true, loop_start_s: 1000}}");
   error = ErrorIn(dir, late_loop);
