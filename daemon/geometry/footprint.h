@@ -76,6 +76,46 @@ struct BoxProjector {
     for (int r = 0; r < 3; ++r) offset[r] = ExactRowAt(r, origin);
   }
 
+  /// The projection of the calibrated camera K [R | t] itself, not of its
+  /// product rounded to doubles: P's last column K t, rounded, moves the
+  /// camera centre by up to 1e-16 |t| cx / fx (10 nm a million metres out,
+  /// far more than kFootprintSlackPx at close range). The offset c is
+  /// K (R o + t), with R o + t summed without rounding, so only M = K R is
+  /// rounded, an error relative to the point's distance from the camera.
+  BoxProjector(const Eigen::Matrix3d& K, const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
+    P.leftCols<3>() = K * R;
+    P.col(3) = K * t;
+    const Eigen::Vector3d o = -R.transpose() * t;
+    if (o.allFinite()) origin = o;
+    // w = R o + t as hi + lo (each a double-double sum of exact products).
+    double w_hi[3], w_lo[3];
+    for (int b = 0; b < 3; ++b) {
+      double hi = t[b], lo = 0.0;
+      for (int a = 0; a < 3; ++a) TwoSumAdd(R(b, a), origin[a], &hi, &lo);
+      w_hi[b] = hi;
+      w_lo[b] = lo;
+    }
+    for (int r = 0; r < 3; ++r) {
+      double hi = 0.0, lo = 0.0;
+      for (int b = 0; b < 3; ++b) {
+        TwoSumAdd(K(r, b), w_hi[b], &hi, &lo);
+        TwoSumAdd(K(r, b), w_lo[b], &hi, &lo);
+      }
+      offset[r] = hi + lo;
+    }
+  }
+
+  /// (*hi, *lo) += a * b: the product split exactly (fma), both parts added
+  /// with an error-free sum into hi and the rounding carried in lo.
+  static void TwoSumAdd(double a, double b, double* hi, double* lo) {
+    const double p = a * b;
+    const double p_err = std::fma(a, b, -p);
+    const double s = *hi + p;
+    const double bb = s - *hi;
+    *lo += (*hi - (s - bb)) + (p - bb) + p_err;
+    *hi = s;
+  }
+
   /// Row r of P at (x, 1), rounded once (double-double accumulation of exact
   /// products).
   [[nodiscard]] double ExactRowAt(int r, const Eigen::Vector3d& x) const {

@@ -8,7 +8,9 @@ namespace hg::octree {
 
 CameraView::CameraView(const geometry::CameraModel& pinhole,
                        const std::vector<geometry::TriangleMesh>& obstacles)
-    : projector_(pinhole.ProjectionMatrix()), width_(pinhole.width), height_(pinhole.height) {
+    : projector_(pinhole.K, pinhole.R_CW, pinhole.t_CW),
+      width_(pinhole.width),
+      height_(pinhole.height) {
   HG_CHECK(!pinhole.HasDistortion());
   HG_CHECK(pinhole.K(2, 2) == 1.0 && pinhole.K(2, 0) == 0.0 && pinhole.K(2, 1) == 0.0);
   bool any_triangle = false;

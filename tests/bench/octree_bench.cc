@@ -143,7 +143,7 @@ void BM_DenseCarve(benchmark::State& state) {
   const int res = static_cast<int>(state.range(0));
   const BenchScene& s = GetBenchScene(8, kFrames);
   std::vector<geometry::BoxProjector> proj;
-  for (const auto& c : s.cell.cameras) proj.emplace_back(c.ProjectionMatrix());
+  for (const auto& c : s.cell.cameras) proj.emplace_back(c.K, c.R_CW, c.t_CW);
   std::vector<std::uint8_t> occupied(static_cast<std::size_t>(res) * res * res);
   const Eigen::Vector3d lo = s.cell.bounds.min;
   const Eigen::Vector3d step = s.cell.bounds.Size() / res;

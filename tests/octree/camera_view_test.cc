@@ -233,16 +233,17 @@ TEST(BoxProjectorTest, FootprintHoldsTheExactCornerPixelsFarFromTheOrigin) {
   EXPECT_GT(checked, 50000);
 }
 
-// The projection's rounding error stays far below kFootprintSlackPx at the
-// edges of what the camera loader accepts (camera_yaml.cc, CheckPlausible):
-// focal lengths 1 .. 1e6 px at most kMaxFocalAspect apart, skew up to the
-// focal length, the principal point up to an image size outside images up to
-// 65535 px that reach at most kMaxImageReach focal lengths from it, cameras a
-// million metres from the origin, points 5 cm .. 5 m in front. Only points that project into the
-// image count: a footprint's border inside the image is the projection of such a point. The error
-// grows with the ratio of the focal lengths (a point in view at v / fy = 65535 is far off the axis
-// in units of fx): at 1e6, which the loader used to accept, it reached 2e-5 px, twenty times the
-// slack.
+// The projection's rounding error, against the calibrated camera K (R p + t)
+// itself, stays far below kFootprintSlackPx at the edges of what the camera loader accepts
+// (camera_yaml.cc, CheckPlausible): focal lengths 1 .. 1e6 px at most kMaxFocalAspect apart, skew
+// up to the focal length, the principal point up to an image size outside images up to 65535 px
+// that reach at most kMaxImageReach focal lengths from it, cameras a million metres from the
+// origin, points 5 cm .. 5 m in front. Only points that project into the image count: a footprint's
+// border inside the image is the projection of such a point. The error grows with the ratio of the
+// focal lengths (a point in view at v / fy = 65535 is far off the axis in units of fx): at 1e6,
+// which the loader used to accept, it reached 2e-5 px, twenty times the slack. Projected with K [R
+// | t] multiplied out in doubles, the rounding of K t moved the camera centre by up to 1e-16 |t| cx
+// / fx, and the error reached 4e-3 px.
 TEST(BoxProjectorTest, ProjectionErrorStaysFarBelowTheSlackAtTheLoadersLimits) {
   std::mt19937_64 rng(78);
   std::uniform_real_distribution<double> u01(0.0, 1.0);
@@ -280,22 +281,26 @@ TEST(BoxProjectorTest, ProjectionErrorStaysFarBelowTheSlackAtTheLoadersLimits) {
                                   .matrix();
     const Eigen::Vector3d centre_W(1e6 * (2.0 * u01(rng) - 1.0), 1e6 * (2.0 * u01(rng) - 1.0),
                                    1e6 * (2.0 * u01(rng) - 1.0));
-    Eigen::Matrix<double, 3, 4> Rt;
-    Rt.leftCols<3>() = R;
-    Rt.col(3) = -R * centre_W;
-    const Eigen::Matrix<double, 3, 4> P = K * Rt;
-    const geometry::BoxProjector projector(P);
+    // The calibration as the loader holds it: K, R and t (t rounded once).
+    const Eigen::Vector3d t = -R * centre_W;
+    const geometry::BoxProjector projector(K, R, t);
     for (int trial = 0; trial < 100; ++trial) {
       const double depth = std::pow(10.0, -1.3 + 2.0 * u01(rng));
       const Eigen::Vector3d p_C =
           depth * (K.inverse() * Eigen::Vector3d(width * u01(rng), height * u01(rng), 1.0));
       const Eigen::Vector3d p_W = R.transpose() * p_C + centre_W;
       const Eigen::Vector2d uv = projector.ProjectPoint(p_W);
+      // K (R p + t) in 113 bits: the camera itself, not K [R | t] rounded.
+      __float128 camera_frame[3];
+      for (int b = 0; b < 3; ++b) {
+        camera_frame[b] = t[b];
+        for (int a = 0; a < 3; ++a) camera_frame[b] += static_cast<__float128>(R(b, a)) * p_W[a];
+      }
       for (int r = 0; r < 2; ++r) {
-        __float128 num = P(r, 3), den = P(2, 3);
-        for (int a = 0; a < 3; ++a) {
-          num += static_cast<__float128>(P(r, a)) * p_W[a];
-          den += static_cast<__float128>(P(2, a)) * p_W[a];
+        __float128 num = 0, den = 0;
+        for (int b = 0; b < 3; ++b) {
+          num += static_cast<__float128>(K(r, b)) * camera_frame[b];
+          den += static_cast<__float128>(K(2, b)) * camera_frame[b];
         }
         const double exact = static_cast<double>(num / den);
         if (exact < -0.5 || exact > (r == 0 ? width : height) - 0.5) continue;

@@ -115,7 +115,7 @@ bool FullInSomeCamera(const OracleInput& in, const common::Box3& box) {
     const common::ImageU8* mask = in.masks[c];
     if (mask == nullptr) continue;
     const geometry::Footprint fp =
-        geometry::BoxProjector(cam.ProjectionMatrix()).Project(box.min, box.max);
+        geometry::BoxProjector(cam.K, cam.R_CW, cam.t_CW).Project(box.min, box.max);
     if (fp.side != geometry::Footprint::Side::kInFront) continue;
     const geometry::PixelRect clip = geometry::ClipToImage(fp.rect, cam.width, cam.height);
     if (clip.Empty()) continue;

@@ -55,7 +55,7 @@ DenseGrid DenseCarve(const common::Box3& bounds, int depth,
   const std::uint32_t n = 1u << depth;
   grid.states.assign(static_cast<std::size_t>(n) * n * n, 0);
   std::vector<geometry::BoxProjector> projectors;
-  for (const auto& cam : cameras) projectors.emplace_back(cam.ProjectionMatrix());
+  for (const auto& cam : cameras) projectors.emplace_back(cam.K, cam.R_CW, cam.t_CW);
   for (std::uint32_t z = 0; z < n; ++z) {
     for (std::uint32_t y = 0; y < n; ++y) {
       for (std::uint32_t x = 0; x < n; ++x) {
