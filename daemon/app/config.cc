@@ -375,7 +375,7 @@ const Field<ReplaySourceConfig> kReplayFields[] = {
      .meaning = "With `loop`: recording time (s) at which each repetition after the first "
                 "starts, so that a stretch of empty cell at the beginning, which the background "
                 "model learns from, is played once. At least two frames must follow it.",
-     .limits = {0, kInf}},
+     .limits = {0, 2592000}},
 };
 
 const Field<AravisSourceConfig> kAravisFields[] = {

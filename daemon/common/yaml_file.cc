@@ -1,6 +1,7 @@
 #include "common/yaml_file.h"
 
 #include <fstream>
+#include <vector>
 
 #include "common/config_error.h"
 #include "common/input_file.h"
@@ -9,7 +10,14 @@ namespace hg::common {
 
 YAML::Node ParseYaml(const std::string& text, const std::string& file) {
   try {
-    return YAML::Load(text);
+    // Every document: a second one (after `---`) would otherwise be dropped
+    // unread, settings and all.
+    std::vector<YAML::Node> documents = YAML::LoadAll(text);
+    if (documents.size() > 1) {
+      throw ConfigError::At(file, documents[1].Mark().line + 1,
+                            "a second YAML document ('---'): a file holds one");
+    }
+    return documents.empty() ? YAML::Node() : documents.front();
   } catch (const YAML::ParserException& e) {
     throw ConfigError::At(file, e.mark.line + 1, "malformed YAML: " + e.msg);
   } catch (const YAML::Exception& e) {

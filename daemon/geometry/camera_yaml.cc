@@ -363,6 +363,15 @@ class CameraParser {
   void SetLookAtPose(CameraModel* camera) const {
     const Eigen::Vector3d eye = Vector3("position");
     const Eigen::Vector3d target = Vector3("look_at");
+    // Checked here, not only on the camera centre: beyond this the norms
+    // below overflow and the pose comes out as R = 0, t = 0.
+    for (const char* key : {"position", "look_at"}) {
+      const Eigen::Vector3d& p = key[0] == 'p' ? eye : target;
+      if (!(p.lpNorm<Eigen::Infinity>() <= common::kMaxCoordinateM)) {
+        throw ConfigError::At(file_, LineOf(Key(key)),
+                              Path(key) + ": more than 1e6 m from the origin");
+      }
+    }
     const Eigen::Vector3d view = target - eye;
     if (!(view.norm() > kMinLookDistance)) {
       throw ConfigError::At(file_, LineOf(Key("look_at")),
@@ -372,8 +381,9 @@ class CameraParser {
     Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
     if (Has("up")) {
       up = Vector3("up");
-      if (!(up.norm() > 0.0)) {
-        throw ConfigError::At(file_, LineOf(Key("up")), Path("up") + ": must not be zero");
+      if (!(up.norm() > 0.0) || !(up.lpNorm<Eigen::Infinity>() <= common::kMaxCoordinateM)) {
+        throw ConfigError::At(file_, LineOf(Key("up")),
+                              Path("up") + ": must not be zero, nor longer than 1e6");
       }
       up.normalize();
       if (std::abs(forward.dot(up)) > kMaxUpAlignment) {

@@ -33,6 +33,12 @@ constexpr double kPi = 3.14159265358979323846;
 
 double Radians(double degrees) { return degrees * kPi / 180.0; }
 
+/// Angles in a scene file: a thousand turns either way at most.
+constexpr double kMaxDegrees = 360000.0;
+/// Times in a scene file (s): a script lasts at most about 115 days; beyond,
+/// its sums lose the frame period and its loops run for ever.
+constexpr double kMaxSceneSeconds = 1e7;
+
 /// yaml-cpp marks are 0-based; messages use 1-based lines (0 = unknown, omitted).
 int LineOf(const YAML::Node& node) { return common::YamlLine(node); }
 
@@ -165,7 +171,9 @@ class Value {
     }
     std::vector<double> out;
     for (const Value& element : List()) {
-      out.push_back(element.Number());
+      // Coordinates and sizes: beyond the cell's largest coordinate they mean
+      // nothing, and their squares and sums overflow.
+      out.push_back(element.InRange(-common::kMaxCoordinateM, common::kMaxCoordinateM));
     }
     return out;
   }
@@ -476,8 +484,9 @@ class SceneParser {
     box.centre_W = map.Get("centre").Vector3();
     box.half_extents_m = 0.5 * map.Get("size").PositiveVector3();
     if (const std::optional<Value> yaw = map.Find("yaw_deg")) {
-      box.R_WB =
-          Eigen::AngleAxisd(Radians(yaw->Number()), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+      box.R_WB = Eigen::AngleAxisd(Radians(yaw->InRange(-kMaxDegrees, kMaxDegrees)),
+                                   Eigen::Vector3d::UnitZ())
+                     .toRotationMatrix();
     }
     return box;
   }
@@ -525,7 +534,8 @@ class SceneParser {
       file.Fail("mesh has no triangles: " + path.string());
     }
     const double scale = map.Has("scale") ? map.Get("scale").Positive() : 1.0;
-    const double yaw = map.Has("yaw_deg") ? Radians(map.Get("yaw_deg").Number()) : 0.0;
+    const double yaw =
+        map.Has("yaw_deg") ? Radians(map.Get("yaw_deg").InRange(-kMaxDegrees, kMaxDegrees)) : 0.0;
     const Eigen::Vector3d translate =
         map.Has("translate") ? map.Get("translate").Vector3() : Eigen::Vector3d::Zero();
     const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
@@ -544,7 +554,7 @@ class SceneParser {
     if (const std::optional<Value> v = map.Find("skin")) person.skin = v->Colour();
     person.start_W = map.Get("start").Point(0.0);
     if (const std::optional<Value> v = map.Find("heading_deg")) {
-      person.start_heading_rad = Radians(v->Number());
+      person.start_heading_rad = Radians(v->InRange(-kMaxDegrees, kMaxDegrees));
     }
     if (const std::optional<Value> script = map.Find("script")) {
       Eigen::Vector3d position_W = person.start_W;
@@ -603,7 +613,7 @@ class SceneParser {
       const MapValue m = body.Map({"duration", "heading_deg"});
       action.duration_s = m.Get("duration").Positive();
       if (const std::optional<Value> heading = m.Find("heading_deg")) {
-        action.heading_rad = Radians(heading->Number());
+        action.heading_rad = Radians(heading->InRange(-kMaxDegrees, kMaxDegrees));
       }
     } else {
       action.kind = ActionKind::kReach;
@@ -617,6 +627,10 @@ class SceneParser {
       action.duration_s = m.Get("duration").Positive();
     }
     *end_s = action.start_s + action.duration_s;
+    if (!(*end_s <= kMaxSceneSeconds)) {
+      item.Fail("ends at " + FormatNumber(*end_s) + " s, after the longest script (" +
+                FormatNumber(kMaxSceneSeconds) + " s)");
+    }
     return action;
   }
 

@@ -300,6 +300,11 @@ TEST(CameraYamlLookAtTest, Errors) {
   ExpectError(Replace(base, "position: [0, 0, 2]", "position: [0, .inf, 2]"), 6,
               {"cameras[0].position[1]: not finite"});
   ExpectError(base + "    up: [0, 0, 0]\n", 8, {"cameras[0].up: must not be zero"});
+  // Beyond 1e6 m the norms overflow and the pose came out as R = 0, t = 0.
+  ExpectError(Replace(base, "position: [0, 0, 2]", "position: [1e200, 0, 2]"), 6,
+              {"cameras[0].position: more than 1e6 m from the origin"});
+  ExpectError(Replace(base, "look_at: [1, 1, 0]", "look_at: [1, 1e200, 0]"), 7,
+              {"cameras[0].look_at: more than 1e6 m from the origin"});
   ExpectError(base + "    up: [-1, -1, 2]\n", 8,
               {"cameras[0].up: (nearly) parallel to the viewing direction"});
   ExpectError(Replace(base, "K: [500,", "K: [-500,"), 5, {"cameras[0].K: focal lengths"});

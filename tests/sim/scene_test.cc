@@ -424,6 +424,21 @@ void ExpectError(const std::string& text, int line, const std::string& start) {
   }
 }
 
+// Numbers that overflow what they feed are refused where they stand: a
+// script of endless duration (its loops never ended: the daemon hung at
+// start-up, deaf to SIGTERM), coordinates beyond the cell's largest, angles
+// whose radians are infinite, a second YAML document (dropped unread).
+TEST(SceneErrorTest, OverflowingNumbersAreRefused) {
+  ExpectError(Replace(kBase, "stand: {duration: 2}", "stand: {duration: 1e308}"), 20,
+              "people[0].script[1]: ends at ");
+  ExpectError(Replace(kBase, "path: [[0.5, 3.5]]", "path: [[1e200, 3.5]]"), 19,
+              "people[0].script[0].walk.path[0][0]: must be in [-1e+06, 1e+06]");
+  ExpectError(Replace(kBase, "height: 1.8\n", "height: 1.8\n    heading_deg: 1e308\n"), 24,
+              "people[1].heading_deg: must be in [-360000, 360000]");
+  ExpectError(std::string(kBase) + "---\nscene: {name: u}\n", 32,
+              "a second YAML document ('---'): a file holds one");
+}
+
 TEST(SceneErrorTest, BaseSceneLoads) {
   const Scene scene = ParseScene(kBase, "scenes/x.yaml", "");
   EXPECT_EQ(scene.people.size(), 2u);
@@ -550,7 +565,7 @@ TEST(SceneErrorTest, ValueRanges) {
   ExpectError(Replace(kBase, "  name: t\n", "  name: t\n  rate_hz: 1e-30\n"), 3,
               "scene.rate_hz: must be within [0.1, 1000] Hz");
   ExpectError(Replace(kBase, "max: [4, 4, 3]", "max: [4, 4, 1e300]"), 3,
-              "scene.bounds.max: coordinates must be within +-1e6 m");
+              "scene.bounds.max[2]: must be in [-1e+06, 1e+06]");
   ExpectError(Replace(kBase, "K: [500, 0, 319.5, 0, 500,", "K: [1e-30, 0, 319.5, 0, 500,"), 8,
               "cameras[0].K: focal lengths must be within [1, 1e6] px");
 }
