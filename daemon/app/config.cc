@@ -887,9 +887,11 @@ class Reader {
     const fs::path resolved = (base_dir_ / *text).lexically_normal();
     std::error_code ec;
     if (check == PathCheck::kFile && !fs::is_regular_file(resolved, ec)) {
-      Error(item.line, item.path,
-            (fs::is_directory(resolved, ec) ? "a folder, not a file: '" : "no such file '") +
-                resolved.string() + "'");
+      const char* what = fs::is_directory(resolved, ec) ? "a folder, not a file: '"
+                         : fs::exists(resolved, ec)
+                             ? "not a regular file (a pipe, socket or device): '"
+                             : "no such file '";
+      Error(item.line, item.path, what + resolved.string() + "'");
       return std::nullopt;
     }
     if (check == PathCheck::kDirectory && !fs::is_directory(resolved, ec)) {

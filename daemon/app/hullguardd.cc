@@ -2,6 +2,7 @@
 /// hullguardd: flags -> load config -> build pipeline -> run.
 
 #include <iostream>
+#include <new>
 #include <string>
 
 #include <yaml-cpp/yaml.h>
@@ -119,6 +120,13 @@ int main(int argc, char** argv) {
     // convert: bad input, which a restart cannot fix.
     std::cerr << path << ": " << e.what() << '\n';
     return kExitBadConfig;
+  } catch (const std::bad_alloc&) {
+    // The memory the config asks for is allocated at start-up; say which
+    // settings size it.
+    std::cerr << "hullguardd: out of memory while starting: the config asks for more than this "
+                 "machine gives (octree.max_nodes, tracking.particles and tracking.max_tracks, "
+                 "blackbox.seconds, replay sources with preload size the largest parts)\n";
+    return kExitCannotRun;
   } catch (const std::exception& e) {
     std::cerr << "hullguardd: " << e.what() << '\n';
     return kExitCannotRun;

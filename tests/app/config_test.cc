@@ -406,6 +406,8 @@ const Mistake kMistakes[] = {
      "no such file"},
     {"scene: scenes/demo_cell.yaml", "scene: scenes", 13, "cameras[0].source.scene",
      "a folder, not a file"},
+    {"scene: scenes/demo_cell.yaml", "scene: /dev/null", 13, "cameras[0].source.scene",
+     "not a regular file (a pipe, socket or device): '/dev/null'"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, camera: cam9}", 13,
      "cameras[0].source.camera", "has no camera 'cam9'"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, device: x}", 13,
