@@ -1930,10 +1930,14 @@ std::vector<std::string> SimSpeedNotices(const Config& config) {
     const sim::Scene scene = sim::LoadScene(path);
     double fastest = 0.0;
     for (const sim::Person& person : scene.people) {
-      // Every 2 ms (the default), but at most 200 000 samples per person, so
-      // that a script hours long does not hold the start-up back.
+      // Every 2 ms (the default), but at most 200 000 samples per person, and
+      // fewer for a script of many actions (each sample looks through them):
+      // a script hours long, or of hundreds of laps, does not hold the
+      // start-up back.
       const double end_s = sim::ScriptEndS(person) + 1.0;
-      const double step_s = std::max(0.002, end_s / 200'000.0);
+      const double samples = std::min(
+          200'000.0, 4e6 / static_cast<double>(std::max<std::size_t>(1, person.actions.size())));
+      const double step_s = std::max(0.002, end_s / samples);
       fastest = std::max(fastest, sim::FastestPartSpeed(person, 0.0, end_s, step_s));
     }
     if (fastest <= config.motion.max_speed_mps) continue;
