@@ -760,6 +760,10 @@ class Reader {
       }
       const std::string& key = kv.first.Scalar();
       const std::string path = Join(item.path, key);
+      if (key == "<<") {
+        Error(line, item.path, common::kMergeKeyText);
+        continue;
+      }
       if (std::find(known.begin(), known.end(), key) == known.end()) {
         Error(line, item.path,
               "unknown key '" + key + "'" +

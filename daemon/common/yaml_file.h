@@ -8,6 +8,10 @@
 
 namespace hg::common {
 
+/// The message for a merge key (`<<: *anchor`): yaml-cpp keeps it as a key
+/// named "<<" instead of merging, so the anchored keys would go unread.
+inline constexpr const char* kMergeKeyText = "merge keys ('<<') are not read: write the keys out";
+
 /// 1-based line of a node, for messages (yaml-cpp marks are 0-based).
 [[nodiscard]] inline int YamlLine(const YAML::Node& node) { return node.Mark().line + 1; }
 

@@ -1,11 +1,13 @@
 #include "geometry/camera_yaml.h"
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <limits>
 #include <map>
 #include <set>
+#include <system_error>
 #include <utility>
 
 #include <Eigen/Core>
@@ -81,6 +83,7 @@ class CameraParser {
           throw ConfigError::At(file_, line, Prefix() + "keys must be strings");
         }
         const std::string key = kv.first.Scalar();
+        if (key == "<<") throw ConfigError::At(file_, line, Prefix() + common::kMergeKeyText);
         if (kKnown.count(key) == 0) {
           throw ConfigError::At(file_, line, Prefix() + "unknown key '" + key + "'");
         }
@@ -290,13 +293,14 @@ class CameraParser {
     if (!Has(key)) return absent;
     const YAML::Node& v = Value(key);
     int side = 0;
-    bool ok = v.IsScalar();
+    bool ok = v.IsScalar() && v.Tag() != "!";  // "!": a quoted string.
     if (ok) {
-      try {
-        side = v.as<int>();
-      } catch (const YAML::Exception&) {
-        ok = false;
-      }
+      // Decimal digits only: yaml-cpp reads 02000 as octal (1024) and 0x780
+      // as hex, neither what a calibration file means.
+      const std::string& text = v.Scalar();
+      const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), side);
+      ok = ec == std::errc() && end == text.data() + text.size() && !text.empty() &&
+           (text.size() == 1 || text[0] != '0');
     }
     if (!ok || side <= 0 || side > kMaxImageSide) {
       throw ConfigError::At(file_, LineOf(Key(key)),

@@ -236,6 +236,7 @@ class MapValue {
         throw ConfigError::At(self.file(), line, where + "keys must be strings");
       }
       const std::string key = kv.first.Scalar();
+      if (key == "<<") throw ConfigError::At(self.file(), line, where + common::kMergeKeyText);
       if (std::find(known.begin(), known.end(), key) == known.end()) {
         throw ConfigError::At(self.file(), line,
                               where + "unknown key '" + key + "' (known: " + Join(known) + ")");

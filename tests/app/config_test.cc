@@ -406,8 +406,6 @@ const Mistake kMistakes[] = {
      "no such file"},
     {"scene: scenes/demo_cell.yaml", "scene: scenes", 13, "cameras[0].source.scene",
      "a folder, not a file"},
-    {"scene: scenes/demo_cell.yaml", "scene: /dev/null", 13, "cameras[0].source.scene",
-     "not a regular file (a pipe, socket or device): '/dev/null'"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, camera: cam9}", 13,
      "cameras[0].source.camera", "has no camera 'cam9'"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, device: x}", 13,
@@ -473,6 +471,10 @@ const Mistake kMistakes[] = {
      "the pose differs from camera 'cam0'"},
     {"look_at: [2, 2, 1]\n", "look_at: [2, 2, 1]\n    distortion: [0.1, 0, 0, 0, 0]\n", 13,
      "cameras[0].distortion", "distortion[0] 0.1 here, 0 in the scene"},
+    {"scene: scenes/demo_cell.yaml", "scene: /dev/null", 13, "cameras[0].source.scene",
+     "not a regular file (a pipe, socket or device): '/dev/null'"},
+    {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, <<: {camera: cam1}}", 13,
+     "cameras[0].source", "merge keys ('<<') are not read: write the keys out"},
 };
 
 TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {

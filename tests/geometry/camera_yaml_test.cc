@@ -405,7 +405,10 @@ TEST(CameraYamlErrorTest, BadRotationAndIntrinsics) {
 }
 
 TEST(CameraYamlErrorTest, BadImageSize) {
-  for (const char* bad : {"-640", "0", "640.5", "abc", "[640]", "100000"}) {
+  // Decimal digits only: yaml-cpp would read 01200 as octal (640), 0x280 as
+  // hex, and a quoted "640" as a number.
+  for (const char* bad :
+       {"-640", "0", "640.5", "abc", "[640]", "100000", "01200", "0x280", "\"640\"", "+640"}) {
     ExpectError(Replace(kCam0, "width: 640", std::string("width: ") + bad), 3,
                 {"cameras[0].width: expected a positive integer"});
   }

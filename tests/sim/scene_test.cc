@@ -437,6 +437,8 @@ TEST(SceneErrorTest, OverflowingNumbersAreRefused) {
               "people[1].heading_deg: must be in [-360000, 360000]");
   ExpectError(std::string(kBase) + "---\nscene: {name: u}\n", 32,
               "a second YAML document ('---'): a file holds one");
+  ExpectError(Replace(kBase, "imaging: {noise_sigma: 1.0}", "imaging: {<<: {noise_sigma: 1.0}}"),
+              30, "imaging: merge keys ('<<') are not read: write the keys out");
 }
 
 TEST(SceneErrorTest, BaseSceneLoads) {
