@@ -1327,11 +1327,14 @@ namespace {
 /// frames index) must read, hold the camera and at least one frame, and the
 /// first frame must decode to the camera block's size, and the recording's
 /// calibration of the camera (its cameras.yaml) must be the camera block's
-/// (CheckSameCamera). Errors are recorded at the `directory` key, with the
-/// recording's own file and line, or at the camera block's key that differs.
-/// `model` is null when the camera block has errors of its own.
-void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Item& directory,
+/// (CheckSameCamera), and a preload must fit the machine's memory. Errors
+/// are recorded at the source's `directory` key (`source`: its entries), with
+/// the recording's own file and line, at its `preload` key, or at the camera
+/// block's key that differs. `model` is null when the camera block has errors
+/// of its own.
+void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Entries& source,
                     const ReplaySourceConfig& replay, const geometry::CameraModel* model) {
+  const Item& directory = source.at("directory");
   try {
     const capture::RecordingCamera rec =
         capture::ReadRecordingCamera(replay.directory, replay.camera);
@@ -1387,11 +1390,8 @@ void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Item& 
       const double memory_mib = static_cast<double>(sysconf(_SC_PHYS_PAGES)) *
                                 static_cast<double>(sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024.0);
       if (memory_mib > 0.0 && mib > 0.5 * memory_mib) {
-        std::string key = directory.path;
-        if (const std::size_t at = key.rfind("directory"); at != std::string::npos) {
-          key.replace(at, std::string("directory").size(), "preload");
-        }
-        r.Error(directory.line, key,
+        const Item& preload = source.at("preload");  // Set, so given.
+        r.Error(preload.line, preload.path,
                 std::to_string(rec.frames.size()) + " frames of camera '" + replay.camera +
                     "' need " + FormatNumber(std::round(mib)) +
                     " MiB preloaded, more than half of this machine's memory (" +
@@ -1584,7 +1584,7 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache*
       const auto dir_it = e_src.find("directory");
       if (!replay.directory.empty() && dir_it != e_src.end() &&
           std::filesystem::is_directory(replay.directory)) {
-        CheckRecording(r, entry, e, dir_it->second, replay, ok ? &camera.model : nullptr);
+        CheckRecording(r, entry, e, e_src, replay, ok ? &camera.model : nullptr);
       }
       camera.source = replay;
       break;

@@ -33,7 +33,7 @@ class ForegroundWatch {
  public:
   using Clock = std::chrono::steady_clock;
   ForegroundWatch(std::size_t cameras, Clock::duration after)
-      : after_(after), told_(cameras, false) {}
+      : after_(after), told_(cameras, false), run_(cameras) {}
   /// `since`: the camera's ForegroundHeavySince(). True the first time in a
   /// run that it reaches `after`; the run ends when `since` is nullopt or
   /// another instant.
@@ -43,7 +43,7 @@ class ForegroundWatch {
  private:
   Clock::duration after_;
   std::vector<bool> told_;
-  std::vector<Clock::time_point> run_ = std::vector<Clock::time_point>(told_.size());
+  std::vector<Clock::time_point> run_;  ///< Per camera: the start of the run told or watched.
 };
 
 /// The warning for camera `name` mostly foreground for `seconds`.

@@ -78,13 +78,13 @@ std::optional<TrackingStats> StatsOf(const TrackingStage* tracking) {
   return tracking->stats();
 }
 
+/// A camera mostly foreground this long is worth a warning (ForegroundWatch).
+constexpr std::chrono::seconds kForegroundWarnAfter{60};
+
 /// The health line at info while all is well, at warning while degraded (so
 /// that `logging.level: warn` still shows what went wrong, once a second).
 // `foreign_publisher`: another publisher writes this daemon's topics (the
 // status samples say degraded while it does).
-/// A camera mostly foreground this long is worth a warning (ForegroundWatch).
-constexpr std::chrono::seconds kForegroundWarnAfter{60};
-
 void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line,
                bool foreign_publisher) {
   log::Write(s.health.degraded || foreign_publisher ? log::Level::kWarn : log::Level::kInfo, line);

@@ -366,7 +366,7 @@ bool LoadRecordedFrame(const RecordingCamera& recording, std::size_t index, Fram
   if (::stat(path->c_str(), &status) != 0 || !S_ISREG(status.st_mode)) return false;
   std::ifstream in(*path, std::ios::binary | std::ios::ate);
   if (!in) return false;
-  // A folder opens too, with a size of -1 or of everything: neither is a frame.
+  // An empty file, or one larger than any frame, is none.
   const std::streamoff size = in.tellg();
   if (size <= 0 || size > kMaxFrameFileBytes) return false;
   bytes->resize(static_cast<std::size_t>(size));

@@ -56,27 +56,35 @@ std::string ReadInputFile(const std::string& path, const std::string& what,
 
 namespace {
 
+/// The next number of a PNM header, after whitespace or comments, into
+/// *number; *at ends just past its digits (at most 9). False without digits.
+bool ReadPnmNumber(const unsigned char* bytes, std::size_t n, std::size_t* at, long long* number) {
+  *number = 0;
+  while (*at < n && (std::isspace(bytes[*at]) != 0 || bytes[*at] == '#')) {
+    if (bytes[*at] == '#') {
+      while (*at < n && bytes[*at] != '\n') ++*at;
+    } else {
+      ++*at;
+    }
+  }
+  const std::size_t start = *at;
+  while (*at < n && *at - start < 9 && std::isdigit(bytes[*at]) != 0) {
+    *number = *number * 10 + (bytes[*at] - '0');
+    ++*at;
+  }
+  return *at != start;
+}
+
 /// A binary PGM/PPM header (P5, P6): width, height and maxval into
-/// `numbers`, each after whitespace or comments; *at ends just past maxval.
-/// False when a number is missing or is not followed by whitespace.
+/// `numbers`; *at ends just past maxval. False when a number is missing or
+/// is not followed by whitespace.
 bool ReadPnmHeader(const unsigned char* bytes, std::size_t n, std::size_t* at,
                    long long (&numbers)[3]) {
   *at = 2;
   for (long long& number : numbers) {
-    number = 0;
-    while (*at < n && (std::isspace(bytes[*at]) != 0 || bytes[*at] == '#')) {
-      if (bytes[*at] == '#') {
-        while (*at < n && bytes[*at] != '\n') ++*at;
-      } else {
-        ++*at;
-      }
+    if (!ReadPnmNumber(bytes, n, at, &number) || *at >= n || std::isspace(bytes[*at]) == 0) {
+      return false;
     }
-    const std::size_t start = *at;
-    while (*at < n && *at - start < 9 && std::isdigit(bytes[*at]) != 0) {
-      number = number * 10 + (bytes[*at] - '0');
-      ++*at;
-    }
-    if (*at == start || *at >= n || std::isspace(bytes[*at]) == 0) return false;
   }
   return true;
 }
@@ -84,23 +92,7 @@ bool ReadPnmHeader(const unsigned char* bytes, std::size_t n, std::size_t* at,
 /// Width and height of a PNM header (P1 to P6) into `size`.
 bool ReadPnmSize(const unsigned char* bytes, std::size_t n, long long (&size)[2]) {
   std::size_t at = 2;
-  for (long long& number : size) {
-    number = 0;
-    while (at < n && (std::isspace(bytes[at]) != 0 || bytes[at] == '#')) {
-      if (bytes[at] == '#') {
-        while (at < n && bytes[at] != '\n') ++at;
-      } else {
-        ++at;
-      }
-    }
-    const std::size_t start = at;
-    while (at < n && at - start < 9 && std::isdigit(bytes[at]) != 0) {
-      number = number * 10 + (bytes[at] - '0');
-      ++at;
-    }
-    if (at == start) return false;
-  }
-  return true;
+  return ReadPnmNumber(bytes, n, &at, &size[0]) && ReadPnmNumber(bytes, n, &at, &size[1]);
 }
 
 std::uint32_t BigEndian32(const unsigned char* b) {

@@ -369,8 +369,7 @@ class CameraParser {
     const Eigen::Vector3d target = Vector3("look_at");
     // Checked here, not only on the camera centre: beyond this the norms
     // below overflow and the pose comes out as R = 0, t = 0.
-    for (const char* key : {"position", "look_at"}) {
-      const Eigen::Vector3d& p = key[0] == 'p' ? eye : target;
+    for (const auto& [key, p] : {std::pair{"position", eye}, std::pair{"look_at", target}}) {
       if (!(p.lpNorm<Eigen::Infinity>() <= common::kMaxCoordinateM)) {
         throw ConfigError::At(file_, LineOf(Key(key)),
                               Path(key) + ": more than 1e6 m from the origin");

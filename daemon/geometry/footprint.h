@@ -120,14 +120,7 @@ struct BoxProjector {
   /// products).
   [[nodiscard]] double ExactRowAt(int r, const Eigen::Vector3d& x) const {
     double hi = P(r, 3), lo = 0.0;
-    for (int a = 0; a < 3; ++a) {
-      const double p = P(r, a) * x[a];
-      const double p_err = std::fma(P(r, a), x[a], -p);
-      const double s = hi + p;
-      const double b = s - hi;
-      lo += (hi - (s - b)) + (p - b) + p_err;
-      hi = s;
-    }
+    for (int a = 0; a < 3; ++a) TwoSumAdd(P(r, a), x[a], &hi, &lo);
     return hi + lo;
   }
 

@@ -484,9 +484,10 @@ class CameraRays {
 // of two products of the ends' distances cancels with an error of ~1e-7 A C,
 // which for a long, thin part (ends metres off the ray, a radius of a
 // millimetre) exceeds R^2 A. Within the loader's coordinates (1e6 m) the
-// products stay far below float's range. Where B or A are rounded across a case boundary, the
-// interior minimum and the end value agree to the same order. Where E vanishes in rounding (the ray
-// along the segment), the interior test can only pass spuriously, which adds pixels.
+// products stay far below float's range. Where B or A are rounded across a
+// case boundary, the interior minimum and the end value agree to the same
+// order. Where E vanishes in rounding (the ray along the segment), the
+// interior test can only pass spuriously, which adds pixels.
 
 struct SegmentF {
   float ax, ay, az, bx, by, bz;

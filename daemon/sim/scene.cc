@@ -33,7 +33,7 @@ constexpr double kPi = 3.14159265358979323846;
 
 double Radians(double degrees) { return degrees * kPi / 180.0; }
 
-/// Angles in a scene file: a thousand turns either way at most.
+/// Angles in a scene file (degrees): a thousand turns either way at most.
 constexpr double kMaxDegrees = 360000.0;
 /// Times in a scene file (s): a script lasts at most about 115 days; beyond,
 /// its sums lose the frame period and its loops run for ever.
@@ -104,6 +104,9 @@ class Value {
     if (!(value >= 0.0)) Fail("must be >= 0");
     return value;
   }
+
+  /// An angle in degrees (a thousand turns either way at most), in radians.
+  [[nodiscard]] double Degrees() const { return Radians(InRange(-kMaxDegrees, kMaxDegrees)); }
 
   /// A number in [lo, hi].
   [[nodiscard]] double InRange(double lo, double hi) const {
@@ -485,9 +488,7 @@ class SceneParser {
     box.centre_W = map.Get("centre").Vector3();
     box.half_extents_m = 0.5 * map.Get("size").PositiveVector3();
     if (const std::optional<Value> yaw = map.Find("yaw_deg")) {
-      box.R_WB = Eigen::AngleAxisd(Radians(yaw->InRange(-kMaxDegrees, kMaxDegrees)),
-                                   Eigen::Vector3d::UnitZ())
-                     .toRotationMatrix();
+      box.R_WB = Eigen::AngleAxisd(yaw->Degrees(), Eigen::Vector3d::UnitZ()).toRotationMatrix();
     }
     return box;
   }
@@ -535,8 +536,7 @@ class SceneParser {
       file.Fail("mesh has no triangles: " + path.string());
     }
     const double scale = map.Has("scale") ? map.Get("scale").Positive() : 1.0;
-    const double yaw =
-        map.Has("yaw_deg") ? Radians(map.Get("yaw_deg").InRange(-kMaxDegrees, kMaxDegrees)) : 0.0;
+    const double yaw = map.Has("yaw_deg") ? map.Get("yaw_deg").Degrees() : 0.0;
     const Eigen::Vector3d translate =
         map.Has("translate") ? map.Get("translate").Vector3() : Eigen::Vector3d::Zero();
     const Eigen::Matrix3d R = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
@@ -555,7 +555,7 @@ class SceneParser {
     if (const std::optional<Value> v = map.Find("skin")) person.skin = v->Colour();
     person.start_W = map.Get("start").Point(0.0);
     if (const std::optional<Value> v = map.Find("heading_deg")) {
-      person.start_heading_rad = Radians(v->InRange(-kMaxDegrees, kMaxDegrees));
+      person.start_heading_rad = v->Degrees();
     }
     if (const std::optional<Value> script = map.Find("script")) {
       Eigen::Vector3d position_W = person.start_W;
@@ -614,7 +614,7 @@ class SceneParser {
       const MapValue m = body.Map({"duration", "heading_deg"});
       action.duration_s = m.Get("duration").Positive();
       if (const std::optional<Value> heading = m.Find("heading_deg")) {
-        action.heading_rad = Radians(heading->InRange(-kMaxDegrees, kMaxDegrees));
+        action.heading_rad = heading->Degrees();
       }
     } else {
       action.kind = ActionKind::kReach;

@@ -427,9 +427,9 @@ int RunReplay(const ReplayFlags& f) {
         const auto before = std::min<std::int64_t>(
             cycles,
             static_cast<std::int64_t>(std::floor(static_cast<double>(*next_ns) / period_ns)));
-        if (before - 1 > k) {
-          skipped += before - 1 - k;
-          degraded += static_cast<std::uint64_t>(before - 1 - k);
+        if (const std::int64_t n = before - 1 - k; n > 0) {
+          skipped += n;
+          degraded += static_cast<std::uint64_t>(n);
           k = before - 1;
         }
       }
