@@ -203,6 +203,8 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   occ.depth = static_cast<std::uint8_t>(snapshot.depth);
   occ.knowledge_filter = snapshot.health.knowledge_filter;
   occ.filtered_m3 = static_cast<float>(snapshot.health.filtered_m3);
+  // As the status sample of this cycle says (below).
+  occ.degraded = snapshot.health.degraded || other_publishers_.load(std::memory_order_relaxed);
   FillCells(snapshot.occupied, occ.occupied, s.occupied);
   FillCells(snapshot.occluded, occ.occluded, s.occluded);
 
@@ -210,7 +212,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   hullguard_Status& st = s.status;
   st.sequence = snapshot.sequence;
   st.stamp_ns = snapshot.stamp_ns;
-  st.degraded = health.degraded || other_publishers_.load(std::memory_order_relaxed);
+  st.degraded = occ.degraded;
   Grow(st.cameras, s.cameras, health.cameras.size());
   for (std::size_t i = 0; i < health.cameras.size(); ++i) {
     const pipeline::CameraHealth& c = health.cameras[i];

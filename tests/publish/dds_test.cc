@@ -68,7 +68,7 @@ pipeline::OccupancySnapshot MakeSnapshot(std::uint64_t seed, std::size_t occupie
   };
   fill(s.occupied, occupied);
   fill(s.occluded, occluded);
-  s.health.degraded = true;
+  s.health.degraded = (seed % 3) != 2;
   s.health.knowledge_filter = (seed % 2) == 1;
   s.health.filtered_m3 = s.health.knowledge_filter ? 0.0125 : 0.0;
   s.health.cameras = {
@@ -198,6 +198,7 @@ void ExpectSameContent(const pipeline::OccupancySnapshot& sent, const ReceivedOc
   }
   EXPECT_EQ(occ.header.knowledge_filter, sent.health.knowledge_filter);
   EXPECT_EQ(occ.header.filtered_m3, static_cast<float>(sent.health.filtered_m3));
+  EXPECT_EQ(occ.header.degraded, sent.health.degraded);
   ExpectSameCells(sent.occupied, occ.occupied);
   ExpectSameCells(sent.occluded, occ.occluded);
 
@@ -381,6 +382,7 @@ TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
   ReceivedStatus st;
   ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
   EXPECT_FALSE(st.header.degraded);
+  EXPECT_FALSE(occ.header.degraded);
   {
     DdsPublisher other(TestConfig("twice"), 30.0);
     int others = 0;
@@ -396,6 +398,7 @@ TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
     s.health.degraded = false;
     ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
     EXPECT_TRUE(st.header.degraded);
+    EXPECT_TRUE(occ.header.degraded);
   }
   int others = 1;
   for (int i = 0; i < 200 && others != 0; ++i) {
@@ -407,6 +410,7 @@ TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
   s.health.degraded = false;
   ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
   EXPECT_FALSE(st.header.degraded);
+  EXPECT_FALSE(occ.header.degraded);
 
   // A best-effort writer of the status topic (another tool, not a daemon)
   // counts too.
@@ -447,6 +451,7 @@ TEST(DdsPublisherTest, AnotherPublisherOfTheSameTopicsMakesTheStatusDegraded) {
     s.health.degraded = false;
     ASSERT_TRUE(PublishUntilReceived(publisher, s, sub, &occ, &st));
     EXPECT_TRUE(st.header.degraded);
+    EXPECT_TRUE(occ.header.degraded);
   }
 }
 

@@ -202,12 +202,14 @@ void PrintOccupancy(const hullguard_Occupancy& s, bool json) {
         "{\"topic\": \"occupancy\", \"sequence\": %llu, \"stamp_ns\": %lld, \"complete\": %s, "
         "\"refined_cell_m\": %.5g, \"depth\": %d, \"occupied\": %llu, \"occluded\": %llu, "
         "\"runs\": %u, "
-        "\"occupied_m3\": %.6g, \"knowledge_filter\": %s, \"filtered_m3\": %.6g}\n",
+        "\"occupied_m3\": %.6g, \"knowledge_filter\": %s, \"filtered_m3\": %.6g, "
+        "\"degraded\": %s}\n",
         static_cast<unsigned long long>(s.sequence), static_cast<long long>(s.stamp_ns),
         s.complete ? "true" : "false", s.refined_cell_m, s.depth,
         static_cast<unsigned long long>(Cells(s.occupied)),
         static_cast<unsigned long long>(Cells(s.occluded)), s.occupied._length + s.occluded._length,
-        OccupiedVolumeM3(s), s.knowledge_filter ? "true" : "false", s.filtered_m3);
+        OccupiedVolumeM3(s), s.knowledge_filter ? "true" : "false", s.filtered_m3,
+        s.degraded ? "true" : "false");
   } else {
     std::printf(
         "occupancy seq=%llu complete=%d refined_cell_m=%.5g depth=%d occupied=%llu occluded=%llu "
@@ -218,6 +220,7 @@ void PrintOccupancy(const hullguard_Occupancy& s, bool json) {
         OccupiedVolumeM3(s));
     // Only with the filter on, so the usual line stays as it was.
     if (s.knowledge_filter) std::printf(" knowledge_filter=1 filtered_m3=%.6g", s.filtered_m3);
+    if (s.degraded) std::printf(" degraded=1");
     std::printf("\n");
   }
 }
