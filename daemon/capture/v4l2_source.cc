@@ -23,6 +23,7 @@
 
 #include "common/config_error.h"
 #include "common/input_file.h"
+#include "common/log.h"
 
 namespace hg::capture {
 namespace {
@@ -36,6 +37,8 @@ constexpr std::chrono::milliseconds kSlice{20};
 // every 2 s costs nothing.
 constexpr std::chrono::milliseconds kFirstRetry{100};
 constexpr std::chrono::milliseconds kMaxRetry{2000};
+// A reopen failure is said again at most this often while it does not change.
+constexpr std::chrono::seconds kRepeatLog{30};
 
 /// The real device: one file descriptor, system calls retried on EINTR.
 class SystemV4l2Device final : public V4l2Device {
@@ -415,12 +418,15 @@ void V4l2Source::Shutdown() {
   open_ = false;
 }
 
-void V4l2Source::Lose() {
+void V4l2Source::Lose(const char* why) {
   disconnects_.fetch_add(1, std::memory_order_relaxed);
+  log::Warn("v4l2[{}]: camera lost ({}): reopening, after {} ms and then up to every {} ms",
+            options_.device, why, kFirstRetry.count(), kMaxRetry.count());
   Shutdown();
   backoff_ = kFirstRetry;
   retry_at_ = std::chrono::steady_clock::now() + backoff_;
   backoff_ = std::min(2 * backoff_, kMaxRetry);
+  reopen_error_.clear();
 }
 
 bool V4l2Source::Next(Frame* frame, std::chrono::milliseconds timeout) {
@@ -436,8 +442,17 @@ bool V4l2Source::Next(Frame* frame, std::chrono::milliseconds timeout) {
         int call_error = 0;
         if (Start(&error, &call_error)) {
           reconnects_.fetch_add(1, std::memory_order_relaxed);
+          log::Info("v4l2[{}]: reopened, streaming again", options_.device);
           backoff_ = kFirstRetry;
           continue;
+        }
+        // Why it cannot come back (another size, another format, busy, gone):
+        // said when it changes, and again every kRepeatLog while it lasts.
+        if (error != reopen_error_ || now - reopen_error_logged_ >= kRepeatLog) {
+          log::Warn("v4l2[{}]: cannot reopen (retrying up to every {} ms): {}", options_.device,
+                    kMaxRetry.count(), error);
+          reopen_error_ = error;
+          reopen_error_logged_ = now;
         }
         retry_at_ = now + backoff_;
         backoff_ = std::min(2 * backoff_, kMaxRetry);
@@ -452,11 +467,11 @@ bool V4l2Source::Next(Frame* frame, std::chrono::milliseconds timeout) {
     short revents = 0;
     const int poll_error = device_->Poll(wait, &revents);
     if (poll_error != 0 && poll_error != EINTR) {
-      Lose();
+      Lose("poll failed");
       return false;
     }
     if ((revents & (POLLERR | POLLHUP | POLLNVAL)) != 0) {
-      Lose();
+      Lose("poll: error or hang-up");
       return false;
     }
     if ((revents & POLLIN) == 0) {
@@ -473,7 +488,7 @@ bool V4l2Source::Next(Frame* frame, std::chrono::milliseconds timeout) {
       continue;
     }
     if (dequeue_error != 0) {  // ENODEV, EIO (queue error) or worse: start over.
-      Lose();
+      Lose("VIDIOC_DQBUF failed");
       return false;
     }
     const bool ok = Convert(buffer, frame);
@@ -482,10 +497,14 @@ bool V4l2Source::Next(Frame* frame, std::chrono::milliseconds timeout) {
     requeue.memory = V4L2_MEMORY_MMAP;
     requeue.index = buffer.index;
     if (device_->QueueBuffer(&requeue) != 0) {
-      Lose();
+      Lose("VIDIOC_QBUF failed");
+      if (ok) completed_.fetch_add(1, std::memory_order_relaxed);
       return ok;  // The frame itself is complete.
     }
-    if (ok) return true;
+    if (ok) {
+      completed_.fetch_add(1, std::memory_order_relaxed);
+      return true;
+    }
     if (Clock::now() >= give_up) return false;
   }
 }

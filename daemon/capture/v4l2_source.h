@@ -109,6 +109,16 @@ class V4l2Source : public CameraSource {
   [[nodiscard]] std::uint64_t corrupt_frames() const override {
     return corrupt_.load(std::memory_order_relaxed);
   }
+  /// The status's transport counters: frames delivered (`completed`),
+  /// corrupt ones (`failed`) and the driver's drops (`underruns`: it had no
+  /// free buffer, the host was too slow); no resends.
+  [[nodiscard]] TransportStats transport_stats() const override {
+    TransportStats s;
+    s.completed = completed_.load(std::memory_order_relaxed);
+    s.failed = corrupt_.load(std::memory_order_relaxed);
+    s.underruns = dropped_.load(std::memory_order_relaxed);
+    return s;
+  }
   /// Frames the driver dropped (gaps in its sequence numbers).
   [[nodiscard]] std::uint64_t dropped_frames() const {
     return dropped_.load(std::memory_order_relaxed);
@@ -136,8 +146,9 @@ class V4l2Source : public CameraSource {
   bool Start(std::string* error, int* call_error);
   /// STREAMOFF, munmap, REQBUFS 0, close; ignores errors (the camera may be gone).
   void Shutdown();
-  /// The camera failed while streaming: close it and schedule a reopen.
-  void Lose();
+  /// The camera failed while streaming (`why`, logged): close it and
+  /// schedule a reopen.
+  void Lose(const char* why);
   /// Fills *frame from a dequeued buffer; false when the buffer is unusable.
   bool Convert(const v4l2_buffer& buffer, Frame* frame);
 
@@ -156,6 +167,9 @@ class V4l2Source : public CameraSource {
   std::chrono::milliseconds backoff_{0};
   std::atomic<bool> streaming_{false};
   std::atomic<bool> stopped_{false};
+  std::string reopen_error_;  // The last reopen failure logged, and when.
+  std::chrono::steady_clock::time_point reopen_error_logged_;
+  std::atomic<std::uint64_t> completed_{0};
   std::atomic<std::uint64_t> corrupt_{0};
   std::atomic<std::uint64_t> dropped_{0};
   std::atomic<std::uint64_t> disconnects_{0};

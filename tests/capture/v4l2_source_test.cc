@@ -621,6 +621,12 @@ TEST(V4l2SourceTest, SequenceGapsAreCountedAsDroppedFrames) {
   }
   EXPECT_EQ(source.dropped_frames(), 3u);
   EXPECT_EQ(source.corrupt_frames(), 0u);
+  // The status carries them as the transport's underruns.
+  const TransportStats stats = source.transport_stats();
+  EXPECT_EQ(stats.completed, sequences.size());
+  EXPECT_EQ(stats.underruns, 3u);
+  EXPECT_EQ(stats.failed, 0u);
+  EXPECT_EQ(stats.resends, 0u);
 }
 
 TEST(V4l2SourceTest, CorruptMjpegFramesAreCountedAndSkipped) {
@@ -664,6 +670,9 @@ TEST(V4l2SourceTest, CorruptMjpegFramesAreCountedAndSkipped) {
   EXPECT_EQ(frame.index, 6u);
   EXPECT_EQ(source.corrupt_frames(), 5u);
   EXPECT_EQ(source.dropped_frames(), 0u);  // Corrupt is not dropped.
+  EXPECT_EQ(source.transport_stats().failed, 5u);
+  EXPECT_EQ(source.transport_stats().completed, 2u);
+  EXPECT_EQ(source.transport_stats().underruns, 0u);
   EXPECT_FALSE(source.Next(&frame, milliseconds(30)));
   EXPECT_EQ(camera->queued.size(), camera->buffers.size());  // Every buffer went back.
   EXPECT_TRUE(camera->violations.empty()) << camera->violations.front();
@@ -680,6 +689,10 @@ TEST(V4l2SourceTest, ShortRawBufferIsCorrupt) {
   ASSERT_TRUE(source.Next(&frame, milliseconds(500)));
   EXPECT_EQ(frame.index, 1u);
   EXPECT_EQ(source.corrupt_frames(), 1u);
+}
+
+bool Contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
 }
 
 class V4l2VanishTest : public ::testing::TestWithParam<Vanish> {};
@@ -725,6 +738,44 @@ TEST_P(V4l2VanishTest, CameraThatVanishesIsReopenedAndFramesFlowAgain) {
   EXPECT_TRUE(camera->violations.empty()) << camera->violations.front();
 }
 
+// A camera that comes back offering another size (another model plugged in,
+// a firmware reset to its default mode) stays failed, since the calibration is
+// for the old size, and the log says why, once, not at every retry; when the
+// size is right again it streams again and the log says so.
+TEST(V4l2SourceTest, CameraBackWithAnotherSizeStaysFailedAndTheLogSaysWhy) {
+  auto camera = std::make_shared<FakeCamera>();
+  camera->script.push_back(GreyFrame(0, 0));
+  camera->script.push_back(VanishItem(Vanish::kPollError, 1));
+  camera->script.push_back(GreyFrame(1, 0));
+  V4l2Source source(Options(V4l2Options::Format::kGrey), FactoryFor(camera));
+  Frame frame;
+  ASSERT_TRUE(source.Next(&frame, milliseconds(500)));
+  ::testing::internal::CaptureStderr();
+  EXPECT_FALSE(source.Next(&frame, milliseconds(500)));
+  camera->width = kWidth / 2;
+  const int opens_before = camera->Count("open");
+  bool got = false;
+  for (int i = 0; i < 30 && !got; ++i) got = source.Next(&frame, milliseconds(50));
+  EXPECT_FALSE(got);
+  EXPECT_TRUE(source.failing());
+  EXPECT_GE(camera->Count("open") - opens_before, 3);  // It kept trying.
+  camera->width = kWidth;
+  for (int i = 0; i < 100 && !got; ++i) got = source.Next(&frame, milliseconds(50));
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  ASSERT_TRUE(got) << log;
+  ExpectGreyFrame(frame, 1);
+  EXPECT_FALSE(source.failing());
+  EXPECT_TRUE(Contains(log, "camera lost (poll: error or hang-up)")) << log;
+  const std::string why = "cannot reopen (retrying up to every 2000 ms): format: asked for GREY " +
+                          std::to_string(kWidth) + "x" + std::to_string(kHeight) +
+                          " (the calibrated size), the driver gives GREY " +
+                          std::to_string(kWidth / 2) + "x" + std::to_string(kHeight);
+  const std::size_t first = log.find(why);
+  EXPECT_NE(first, std::string::npos) << log;
+  EXPECT_EQ(log.find(why, first + 1), std::string::npos) << "said at every retry:\n" << log;
+  EXPECT_TRUE(Contains(log, "reopened, streaming again")) << log;
+}
+
 INSTANTIATE_TEST_SUITE_P(Ways, V4l2VanishTest,
                          ::testing::Values(Vanish::kPollError, Vanish::kDequeueNoDevice),
                          [](const ::testing::TestParamInfo<Vanish>& param_info) {
@@ -732,10 +783,6 @@ INSTANTIATE_TEST_SUITE_P(Ways, V4l2VanishTest,
                                       ? std::string("PollError")
                                       : std::string("DqbufEnodev");
                          });
-
-bool Contains(const std::string& text, const std::string& part) {
-  return text.find(part) != std::string::npos;
-}
 
 // The message of the ConfigError the constructor throws ("" if none).
 std::string StartupError(const std::shared_ptr<FakeCamera>& camera, const V4l2Options& options) {
