@@ -340,6 +340,17 @@ struct AravisSource::Releaser {
   bool done = false;             // Guarded by mutex.
 };
 
+struct AravisSource::Triggerer {
+  std::mutex mutex;
+  std::condition_variable wake;      // Another camera, or done.
+  std::condition_variable finished;  // The thread has ended.
+  ArvCamera* camera = nullptr;       // A reference of the thread's own; guarded by mutex.
+  Clock::duration period{};          // Guarded by mutex.
+  std::uint64_t generation = 0;      // +1 per camera handed over; guarded by mutex.
+  bool done = false;                 // Guarded by mutex.
+  bool ended = false;                // Guarded by mutex.
+};
+
 AravisSource::AravisSource(AravisOptions options)
     : options_(std::move(options)), releaser_(std::make_shared<Releaser>()) {
   if (options_.frame_rate_hz && *options_.frame_rate_hz > 0.0 &&
@@ -352,12 +363,21 @@ AravisSource::AravisSource(AravisOptions options)
   releaser_->queue.reserve(4);
   // The thread holds its own reference: it may outlive the source.
   release_thread_ = std::thread([releaser = releaser_] { ReleaseLoop(releaser); });
+  if (options_.trigger == AravisOptions::Trigger::kSoftware) {
+    triggerer_ = std::make_shared<Triggerer>();
+    trigger_thread_ = std::thread([triggerer = triggerer_] { TriggerLoop(triggerer); });
+  }
   control_ = std::thread([this] { ControlLoop(); });
 }
 
 AravisSource::~AravisSource() {
   Stop();
   if (control_.joinable()) control_.join();
+  if (triggerer_) {
+    std::lock_guard<std::mutex> lock(triggerer_->mutex);
+    triggerer_->done = true;
+    triggerer_->wake.notify_all();
+  }
   // The control thread has ended and Next() is not running: whichever of the
   // handoff places holds the session, it is released now. The streamed one
   // counts as lost when its frames had stopped.
@@ -390,6 +410,76 @@ AravisSource::~AravisSource() {
         "leaving %zu unanswered camera release(s) to finish in the background", pending);
     release_thread_.detach();
   }
+  if (triggerer_) {
+    // A trigger command to a dead camera may still be waiting for its
+    // timeouts: the thread needs nothing of this object and ends on its own.
+    std::unique_lock<std::mutex> trigger_lock(triggerer_->mutex);
+    if (triggerer_->finished.wait_until(trigger_lock, deadline,
+                                        [this] { return triggerer_->ended; })) {
+      trigger_lock.unlock();
+      trigger_thread_.join();
+    } else {
+      trigger_thread_.detach();
+    }
+  }
+}
+
+void AravisSource::TriggerSession(const Session* session) {
+  ArvCamera* camera = nullptr;
+  if (session != nullptr && session->camera != nullptr) {
+    camera = session->camera;
+    g_object_ref(camera);
+  }
+  ArvCamera* old = nullptr;
+  {
+    std::lock_guard<std::mutex> lock(triggerer_->mutex);
+    old = std::exchange(triggerer_->camera, camera);
+    if (session != nullptr) {
+      triggerer_->period = std::chrono::duration_cast<Clock::duration>(
+          std::chrono::duration<double>(session->trigger_period_s));
+    }
+    ++triggerer_->generation;
+  }
+  triggerer_->wake.notify_all();
+  // The release thread drops the session's own references; this one was only
+  // the trigger thread's, which a trigger in progress holds another of.
+  if (old != nullptr) g_object_unref(old);
+}
+
+void AravisSource::TriggerLoop(const std::shared_ptr<Triggerer>& triggerer) {
+  Triggerer& t = *triggerer;
+  std::unique_lock<std::mutex> lock(t.mutex);
+  std::uint64_t generation = t.generation;
+  Clock::time_point next = Clock::now();
+  while (!t.done) {
+    if (t.generation != generation) {
+      generation = t.generation;
+      next = Clock::now();  // A new camera is triggered at once.
+    }
+    if (t.camera == nullptr) {
+      t.wake.wait(lock);
+      continue;
+    }
+    if (Clock::now() < next) {
+      t.wake.wait_until(lock, next);
+      continue;
+    }
+    ArvCamera* camera = t.camera;
+    g_object_ref(camera);
+    const Clock::duration period = t.period;
+    lock.unlock();
+    GError* e = nullptr;
+    arv_camera_software_trigger(camera, &e);
+    g_clear_error(&e);  // A dead camera shows as missing frames.
+    g_object_unref(camera);
+    lock.lock();
+    next += period;
+    const Clock::time_point now = Clock::now();
+    if (next <= now) next = now + period;
+  }
+  if (t.camera != nullptr) g_object_unref(std::exchange(t.camera, nullptr));
+  t.ended = true;
+  t.finished.notify_all();
 }
 
 void AravisSource::Retire(Session* session) {
@@ -446,7 +536,7 @@ TransportStats AravisSource::transport_stats() const {
   return s;
 }
 
-AravisSource::Session* AravisSource::Connect(std::string* error) {
+AravisSource::Session* AravisSource::Connect(std::string* error, bool announce) {
   GError* e = nullptr;
   auto session = std::make_unique<Session>();
   if (IsIpv4Address(options_.device) && !ProbeGvcp(options_.device, stopped_, error)) {
@@ -582,6 +672,7 @@ AravisSource::Session* AravisSource::Connect(std::string* error) {
 
   const char* model = arv_camera_get_model_name(camera, nullptr);
   const char* serial = arv_camera_get_device_serial_number(camera, nullptr);
+  if (!announce) return session.release();
   Log(log::Level::kInfo, options_.device,
       "streaming from %s %s: %dx%d, exposure %.0f us, payload %u bytes%s",
       model != nullptr ? model : "?", serial != nullptr ? serial : "?", session->width,
@@ -606,38 +697,62 @@ void AravisSource::ControlLoop() {
   Session* current = nullptr;  // Offered, streamed from, or being returned.
   milliseconds backoff = kMinBackoff;
   Clock::time_point next_attempt = Clock::now();
-  Clock::time_point next_trigger;
   std::string last_error;
   Clock::time_point last_error_log;
   bool was_lost = false;
+  // A connection that delivers nothing (a hardware trigger without pulses, a
+  // camera that opens but does not stream) is reopened with a growing
+  // backoff, and said again only every kRepeatLog while it lasts.
+  Clock::time_point last_silent_log;
+  bool announce = true;  // Log the next connection (not after a silent one).
+
   while (!stopped_.load()) {
     Clock::time_point now = Clock::now();
     if (Session* back = returned_.exchange(nullptr)) {
-      Log(log::Level::kWarn, options_.device,
-          "no complete frame for %lld ms: connection lost, reopening",
-          static_cast<long long>(options_.frame_timeout.count()));
+      const bool delivered = back->delivered.load();
+      announce = delivered;
+      if (delivered) {
+        Log(log::Level::kWarn, options_.device,
+            "no complete frame for %lld ms: connection lost, reopening",
+            static_cast<long long>(options_.frame_timeout.count()));
+        last_silent_log = Clock::time_point{};
+      } else if (last_silent_log == Clock::time_point{} || now - last_silent_log >= kRepeatLog) {
+        Log(log::Level::kWarn, options_.device,
+            "no frame within %lld ms of opening%s: reopening, backoff up to %lld ms "
+            "(said again every %lld s while it lasts)",
+            static_cast<long long>(options_.frame_timeout.count()),
+            options_.trigger == AravisOptions::Trigger::kHardware
+                ? " (hardware trigger: no pulses on Line0?)"
+                : "",
+            static_cast<long long>(kMaxBackoff.count()),
+            static_cast<long long>(std::chrono::seconds(kRepeatLog).count()));
+        last_silent_log = now;
+      }
       back->lost = true;
+      if (triggerer_) TriggerSession(nullptr);
       Retire(back);
       current = nullptr;
       was_lost = true;
       now = Clock::now();
       next_attempt = now + backoff;
+      if (!delivered) backoff = std::min(backoff * 2, kMaxBackoff);
     }
     if (current != nullptr && current->delivered.load()) backoff = kMinBackoff;
 
     if (current == nullptr && now >= next_attempt) {
       std::string error;
-      current = Connect(&error);
+      current = Connect(&error, announce);
       if (current == nullptr && stopped_.load()) break;
       now = Clock::now();
       if (current != nullptr) {
-        if (connections_.fetch_add(1) > 0 || was_lost) {
+        if ((connections_.fetch_add(1) > 0 || was_lost) && announce) {
           Log(log::Level::kInfo, options_.device, "reconnected");
         }
         last_error.clear();
         connected_.store(true);
-        failing_.store(false);
-        next_trigger = now;
+        // failing() stays as it was until the connection delivers a frame
+        // (Next()): one that opens but sends nothing is no better than none.
+        if (triggerer_) TriggerSession(current);
         offered_.store(current, std::memory_order_release);
       } else {
         if (error != last_error || now - last_error_log >= kRepeatLog) {
@@ -653,19 +768,8 @@ void AravisSource::ControlLoop() {
       }
     }
 
-    if (current != nullptr && current->trigger_period_s > 0.0 && now >= next_trigger) {
-      GError* e = nullptr;
-      arv_camera_software_trigger(current->camera, &e);
-      g_clear_error(&e);  // A dead camera shows as missing frames.
-      const auto period = std::chrono::duration_cast<Clock::duration>(
-          std::chrono::duration<double>(current->trigger_period_s));
-      next_trigger += period;
-      if (next_trigger <= Clock::now()) next_trigger = Clock::now() + period;
-    }
-
     Clock::time_point wake = now + std::chrono::seconds(1);
     if (current == nullptr) wake = next_attempt;
-    if (current != nullptr && current->trigger_period_s > 0.0) wake = next_trigger;
     std::unique_lock<std::mutex> lock(control_mutex_);
     control_wake_.wait_until(lock, wake, [this] {
       return stopped_.load() || returned_.load(std::memory_order_relaxed) != nullptr;
@@ -782,7 +886,10 @@ bool AravisSource::Next(Frame* frame, milliseconds timeout) {
     }
     completed_.fetch_add(1, std::memory_order_relaxed);
     last_good_ = Clock::now();
-    if (!active_->delivered.load(std::memory_order_relaxed)) active_->delivered.store(true);
+    if (!active_->delivered.load(std::memory_order_relaxed)) {
+      active_->delivered.store(true);
+      failing_.store(false);
+    }
     return true;
   }
 }

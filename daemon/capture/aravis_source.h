@@ -58,13 +58,16 @@ struct AravisOptions {
 /// A GigE Vision camera as a CameraSource.
 ///
 /// All blocking control-channel work (discovery, opening, configuring,
-/// starting acquisition, software triggers) runs on the source's own control
-/// thread, and releasing a camera on a release thread, so Next() never blocks
+/// starting acquisition) runs on the source's own control thread, software
+/// triggers on a trigger thread, and releasing a camera on a release thread,
+/// so Next() never blocks
 /// longer than its timeout even while a camera takes seconds to time out, and
 /// a camera that comes back is reopened while the dead connection is still
 /// being torn down. The constructor does not throw when the camera is absent:
 /// the control thread keeps trying with exponential backoff (100 ms doubling
-/// to 2 s, back to 100 ms once a connection delivers a frame).
+/// to 2 s, back to 100 ms once a connection delivers a frame). A connection
+/// that is lost before it delivered anything (a hardware trigger without
+/// pulses) doubles the backoff too, and is logged at most every 30 s.
 ///
 /// Next() pops the newest completed stream buffer (older ones waiting are
 /// skipped, so a late reader gets the freshest image), converts it (Mono8 ->
@@ -88,10 +91,11 @@ struct AravisOptions {
 /// any thread. The destructor must not run concurrently with Next(). It is
 /// bounded for systemd's stop timeout: a camera that answers is released at
 /// once, but releasing a dead one takes Aravis 7.5 s of command timeouts
-/// (12.5 s with stop-acquisition, which a camera known lost is not sent). The destructor
-/// waits for releases until kReleaseGrace after Stop() and then leaves the
-/// rest to the release thread, which finishes on its own or ends with the
-/// process. No allocation per frame after the first frame of each image size.
+/// (12.5 s with stop-acquisition, which a camera known lost is not sent). The
+/// destructor waits for releases (and a trigger in progress) until
+/// kReleaseGrace after Stop() and then leaves the rest to the release (and
+/// trigger) thread, which finishes on its own or ends with the process. No allocation per frame
+/// after the first frame of each image size.
 class AravisSource : public CameraSource {
  public:
   /// Starts the control thread, which opens the camera in the background.
@@ -124,7 +128,7 @@ class AravisSource : public CameraSource {
   /// The counters of stats() that go into the camera's status. Thread-safe.
   [[nodiscard]] TransportStats transport_stats() const override;
   /// The last attempt to open the camera failed, or its connection was lost,
-  /// and no connection stands since.
+  /// and no connection has delivered a frame since.
   [[nodiscard]] bool failing() const override { return failing_.load(std::memory_order_relaxed); }
 
  private:
@@ -132,13 +136,22 @@ class AravisSource : public CameraSource {
   // The release thread's queue. Shared with that thread, which may outlive the
   // source when a dead camera's release is left to finish on its own.
   struct Releaser;
+  // The software trigger thread's camera and period. Shared with that thread,
+  // which may outlive the source while a trigger command to a dead camera
+  // waits for its timeouts.
+  struct Triggerer;
 
   void ControlLoop();
-  Session* Connect(std::string* error);
+  // Opens, configures and starts the camera; `announce`: log the connection.
+  Session* Connect(std::string* error, bool announce);
   // Hands a session to the release thread.
   void Retire(Session* session);
   static void Release(Session* session);
   static void ReleaseLoop(const std::shared_ptr<Releaser>& releaser);
+  static void TriggerLoop(const std::shared_ptr<Triggerer>& triggerer);
+  // The session whose camera the trigger thread triggers, at its period
+  // (nullptr: none). The thread takes its own reference to the camera.
+  void TriggerSession(const Session* session);
   void SampleStreamStats(Session* session);
 
   const AravisOptions options_;
@@ -164,6 +177,13 @@ class AravisSource : public CameraSource {
   // own thread does it so that reopening need not wait.
   std::shared_ptr<Releaser> releaser_;
   std::thread release_thread_;
+
+  // Software triggers go out on their own thread: a trigger command to a
+  // camera that stopped answering blocks for Aravis' command timeouts (five
+  // tries of 500 ms), which must hold up neither the reopening nor the
+  // destructor. Started only for Trigger::kSoftware.
+  std::shared_ptr<Triggerer> triggerer_;
+  std::thread trigger_thread_;
 
   std::atomic<std::uint64_t> completed_{0};
   std::atomic<std::uint64_t> failed_{0};

@@ -107,7 +107,18 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   }
 }
 
-Pipeline::~Pipeline() { Stop(); }
+Pipeline::~Pipeline() {
+  Stop();
+  // A source's destructor may wait up to its stop grace for its camera (a
+  // dead GigE camera's release, capture::AravisSource::kReleaseGrace): the
+  // sources go side by side, so that many dead cameras take as long as one.
+  std::vector<std::thread> releases;
+  releases.reserve(cameras_.size());
+  for (auto& camera : cameras_) {
+    if (camera->source) releases.emplace_back([&source = camera->source] { source.reset(); });
+  }
+  for (std::thread& t : releases) t.join();
+}
 
 void Pipeline::Start() {
   stop_.store(false);

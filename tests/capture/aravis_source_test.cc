@@ -121,6 +121,11 @@ class CameraProcess {
   CameraProcess& operator=(const CameraProcess&) = delete;
 
   [[nodiscard]] bool started() const { return pid_ > 0; }
+  // SIGSTOP: the camera stops answering (a pulled cable) but its process
+  // stays; Kill() still ends it.
+  void Pause() {
+    if (pid_ > 0) kill(pid_, SIGSTOP);
+  }
   // SIGKILL: the camera vanishes as with a pulled cable, without a goodbye.
   void Kill() {
     if (pid_ <= 0) return;
@@ -353,6 +358,76 @@ TEST(AravisSourceTest, SoftwareTriggerDrivesTheCamera) {
   EXPECT_TRUE(arv_fake_camera_is_in_software_trigger_mode(camera.fake()));
   for (int n = 0; n < 4; ++n) ASSERT_TRUE(NextWithin(&source, &frame, milliseconds(5000)));
   EXPECT_TRUE(source.stats().connected);
+}
+
+// A software-triggered camera that stops answering (cable pulled): a trigger
+// command to it waits for Aravis' command timeouts (2.5 s), which must not
+// hold up the source's stop beyond its release grace (it took 1.8-3.7 s, past
+// what a daemon's SIGTERM allows).
+TEST(AravisSourceTest, ASoftwareTriggeredCameraThatStopsAnsweringDoesNotHoldUpTheStop) {
+  if (access(HG_ARV_FAKE_GV_CAMERA, X_OK) != 0) GTEST_SKIP() << "no arv-fake-gv-camera-0.8";
+  CameraProcess camera("HGTRIGSTOP");
+  ASSERT_TRUE(camera.started());
+  AravisOptions options = FakeOptions("127.0.0.1", Pixel::kMono8);
+  options.trigger = AravisOptions::Trigger::kSoftware;
+  options.frame_rate_hz = 8.0;
+  auto source = std::make_unique<AravisSource>(options);
+  Frame frame;
+  ASSERT_TRUE(NextWithin(source.get(), &frame, milliseconds(20000)));
+  ASSERT_TRUE(NextWithin(source.get(), &frame, milliseconds(5000)));
+  camera.Pause();
+  // Long enough for a trigger to be sent to the silent camera and wait.
+  std::this_thread::sleep_for(milliseconds(400));
+  const Clock::time_point before = Clock::now();
+  source->Stop();
+  source.reset();
+  const Clock::duration took = Clock::now() - before;
+  EXPECT_LT(took, AravisSource::kReleaseGrace + milliseconds(400))
+      << std::chrono::duration_cast<milliseconds>(took).count() << " ms";
+}
+
+// A hardware-triggered camera without pulses delivers nothing: the source
+// reopens it (it may be a dead connection) with a growing backoff, says so once
+// rather than twice per reopen, and reports failing throughout instead of
+// `starting` after every reopen.
+TEST(AravisSourceTest, AHardwareTriggerWithoutPulsesIsReopenedQuietlyAndFailing) {
+  InProcessCamera camera("HGNOPULSE");
+  ASSERT_TRUE(camera.running());
+  AravisOptions options = FakeOptions("127.0.0.1", Pixel::kMono8);
+  options.trigger = AravisOptions::Trigger::kHardware;
+  options.frame_rate_hz.reset();
+  options.frame_timeout = milliseconds(200);
+  ::testing::internal::CaptureStderr();
+  AravisSource source(options);
+  Frame frame;
+  int failing_seen_after_first_loss = 0;
+  int not_failing_after_first_loss = 0;
+  bool lost_once = false;
+  const Clock::time_point end = Clock::now() + milliseconds(3500);
+  while (Clock::now() < end) {
+    EXPECT_FALSE(source.Next(&frame, milliseconds(50)));
+    if (source.failing()) lost_once = true;
+    if (lost_once)
+      (source.failing() ? failing_seen_after_first_loss : not_failing_after_first_loss)++;
+  }
+  const AravisSource::Stats stats = source.stats();
+  const std::string log = ::testing::internal::GetCapturedStderr();
+  auto count = [&log](const std::string& part) {
+    int n = 0;
+    for (std::size_t at = log.find(part); at != std::string::npos; at = log.find(part, at + 1)) ++n;
+    return n;
+  };
+  EXPECT_TRUE(lost_once) << log;
+  EXPECT_EQ(not_failing_after_first_loss, 0) << log;
+  EXPECT_GT(failing_seen_after_first_loss, 0);
+  // 200 ms silent, then reopened after 0.1, 0.2, 0.4, 0.8, 1.6 s: four or five
+  // reopens in 3.5 s, not one every 0.3 s.
+  EXPECT_GE(stats.reconnects, 1u);
+  EXPECT_LE(stats.reconnects, 5u) << log;
+  EXPECT_EQ(count("no frame within 200 ms of opening (hardware trigger: no pulses on Line0?)"), 1)
+      << log;
+  EXPECT_EQ(count("connection lost"), 0) << log;
+  EXPECT_EQ(count("reconnected"), 0) << log;
 }
 
 TEST(AravisSourceTest, AbsentCameraIsNoErrorAndARestartedCameraIsReconnected) {

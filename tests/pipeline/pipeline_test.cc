@@ -683,6 +683,46 @@ TEST(PipelineTest, AnImageFrameOfTheWrongSizeIsCountedCorruptAndSkipped) {
   EXPECT_EQ(s->health.cameras[1].corrupt, 0u);
 }
 
+// A source whose destructor takes a while, as an AravisSource's does while it
+// waits for a dead camera's release.
+class SlowToCloseSource : public capture::CameraSource {
+ public:
+  explicit SlowToCloseSource(std::chrono::milliseconds close) : close_(close) {}
+  ~SlowToCloseSource() override { std::this_thread::sleep_for(close_); }
+  bool Next(capture::Frame* /*frame*/, std::chrono::milliseconds timeout) override {
+    std::this_thread::sleep_for(std::min(timeout, std::chrono::milliseconds(5)));
+    return false;
+  }
+  void Stop() override {}
+
+ private:
+  std::chrono::milliseconds close_;
+};
+
+// Shutting down with several cameras whose sources are slow to close (dead
+// GigE cameras, each waiting up to its release grace) takes as long as one,
+// not one after another: systemd's stop timeout holds for 16 cameras as for 1.
+TEST(PipelineTest, SourcesCloseSideBySide) {
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 5;
+  options.publish_depth = 5;
+  constexpr auto kClose = std::chrono::milliseconds(600);
+  std::vector<PipelineCamera> cameras = FedCameras(*scene);
+  ASSERT_GE(cameras.size(), 3u);
+  for (PipelineCamera& c : cameras) c.source = std::make_unique<SlowToCloseSource>(kClose);
+  auto pipeline = std::make_unique<Pipeline>(options, std::move(cameras),
+                                             std::vector<geometry::TriangleMesh>{}, nullptr);
+  pipeline->Start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  const auto before = std::chrono::steady_clock::now();
+  pipeline.reset();
+  const auto took = std::chrono::steady_clock::now() - before;
+  EXPECT_GE(took, kClose);
+  EXPECT_LT(took, 2 * kClose) << "the sources closed one after another";
+}
+
 // An octree node store too small for the scene (octree.max_nodes): the
 // published grid stays conservative (no point inside a person free), and the
 // status is degraded with the unsplit nodes counted; with the default store
