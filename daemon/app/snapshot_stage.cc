@@ -18,10 +18,10 @@ constexpr long kWaitNs = 100'000'000L;
 }  // namespace
 
 SnapshotStage::SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats,
-                             int nice)
+                             int nice, std::chrono::steady_clock::duration stall_allowance)
     : consumer_(std::move(consumer)), heartbeats_(heartbeats), nice_(nice) {
   HG_CHECK(sem_init(&offered_, 0, 0) == 0);
-  if (heartbeats_ != nullptr) heartbeat_ = heartbeats_->Register(name);
+  if (heartbeats_ != nullptr) heartbeat_ = heartbeats_->Register(name, stall_allowance);
 }
 
 SnapshotStage::~SnapshotStage() {

@@ -6,6 +6,7 @@
 #include <semaphore.h>
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -33,7 +34,10 @@ class SnapshotStage {
   /// `heartbeats` may be null; otherwise the stage registers itself as `name`.
   /// `nice` > 0 lowers the thread's priority (setpriority, no privilege needed;
   /// on failure it keeps the default).
-  SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats, int nice = 0);
+  /// `stall_allowance`: how long a consumer call may keep the heartbeat still
+  /// before the watchdog counts the stage stalled (common::Heartbeats::Register).
+  SnapshotStage(std::string name, Consumer consumer, common::Heartbeats* heartbeats, int nice = 0,
+                std::chrono::steady_clock::duration stall_allowance = {});
   ~SnapshotStage();
   SnapshotStage(const SnapshotStage&) = delete;
   SnapshotStage& operator=(const SnapshotStage&) = delete;

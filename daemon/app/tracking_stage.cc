@@ -3,6 +3,8 @@
 #include <chrono>
 #include <utility>
 
+#include "common/log.h"
+
 namespace hg::app {
 namespace {
 
@@ -67,13 +69,18 @@ TrackingStage::TrackingStage(const tracking::TrackerOptions& options, const comm
       consumer_(std::move(consumer)),
       stage_(
           "tracking", [this](const pipeline::OccupancySnapshot& s) { RunOnce(s); }, heartbeats,
-          kTrackingNice) {}
+          kTrackingNice, kTrackingStallAllowance) {}
 
 TrackingStage::~TrackingStage() { Stop(); }
 
 void TrackingStage::Start() { stage_.Start(); }
 
-void TrackingStage::Stop() { stage_.Stop(); }
+void TrackingStage::Stop() {
+  // A cycle of many particles may take seconds: it is cut short (its tracks
+  // are not handed on), so that the daemon stops within its second.
+  tracker_.Abort();
+  stage_.Stop();
+}
 
 void TrackingStage::Offer(const std::shared_ptr<const pipeline::OccupancySnapshot>& snapshot) {
   stage_.Offer(snapshot);
@@ -91,7 +98,18 @@ bool TrackingStage::RunOnce(const pipeline::OccupancySnapshot& snapshot) {
   }
   const SteadyClock::time_point start = SteadyClock::now();
   tracker_.Update(snapshot);
+  if (tracker_.aborted()) return false;
   const double ms = std::chrono::duration<double, std::milli>(SteadyClock::now() - start).count();
+  if (ms >= static_cast<double>(kSlowTrackingCycle.count()) &&
+      (slow_logged_ms_ == 0.0 || ms >= 2.0 * slow_logged_ms_)) {
+    // Once, and again when it gets twice as slow: not per cycle.
+    slow_logged_ms_ = ms;
+    log::Warn(
+        "tracking: a cycle took {:.0f} ms (tracks skip occupancy samples meanwhile; the "
+        "occupancy is not held up): lower tracking.particles or tracking.max_tracks, or coarsen "
+        "tracking.voxel_m",
+        ms);
+  }
   const std::vector<tracking::Track>& tracks = tracker_.tracks();
   last_ms_.store(ms, std::memory_order_relaxed);
   AtomicMax(&max_ms_, ms);

@@ -5,6 +5,7 @@
 /// consumer (the DDS publisher).
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -33,6 +34,14 @@ namespace hg::app {
 
 /// Niceness of the tracking thread: below the fusion and capture threads.
 inline constexpr int kTrackingNice = 10;
+
+/// How long one tracking cycle may run before the watchdog counts the
+/// tracking stage stalled. Tracks are no safety output and a cycle of many
+/// particles on a loaded machine may take seconds; restarting the daemon for
+/// that (systemd, WatchdogSec=2) would cut the occupancy stream. A cycle
+/// longer than kSlowTrackingCycle is logged instead.
+inline constexpr std::chrono::seconds kTrackingStallAllowance{15};
+inline constexpr std::chrono::milliseconds kSlowTrackingCycle{1000};
 
 /// One tracked cycle, as handed to the consumer; valid during the call only.
 struct TrackedCycle {
@@ -82,7 +91,8 @@ class TrackingStage {
   /// Builds the tracker over `bounds` (start-up work: one obstacle depth map
   /// per camera and one projection per voxel and camera). `heartbeats`
   /// (optional, must outlive the stage) gets one stage, "tracking", beaten
-  /// every loop iteration (every 100 ms while idle).
+  /// every loop iteration (every 100 ms while idle), which may stay still for
+  /// kTrackingStallAllowance before the watchdog counts it stalled.
   /// @throws common::ConfigError on bad options.
   TrackingStage(const tracking::TrackerOptions& options, const common::Box3& bounds,
                 const tracking::StaticScene& scene, Consumer consumer,
@@ -93,7 +103,8 @@ class TrackingStage {
 
   /// Starts the tracking thread. Precondition: not running.
   void Start();
-  /// Ends the thread (once its current cycle, if any, is done). Idempotent.
+  /// Ends the thread, cutting a cycle in progress short (its tracks are not
+  /// handed to the consumer); tracking is over for good. Idempotent.
   void Stop();
 
   /// Hands the newest snapshot to the tracking thread. Never blocks, never
@@ -121,6 +132,7 @@ class TrackingStage {
   std::atomic<int> tracks_{0};
   std::atomic<double> last_ms_{0.0};
   std::atomic<double> max_ms_{0.0};
+  double slow_logged_ms_ = 0.0;  // Tracking thread: the slow cycle last logged.
 };
 
 }  // namespace hg::app

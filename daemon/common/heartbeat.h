@@ -10,6 +10,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <string>
 #include <utility>
@@ -38,10 +39,18 @@ class Heartbeats {
   /// what the watchdog reports when the stage stalls (e.g. "capture cam0").
   /// Precondition: no thread is beating or checking yet; fewer than
   /// kCapacity stages so far (checked: aborts otherwise).
-  int Register(std::string name) {
+  ///
+  /// `allowance`: how long the stage may go without a beat before a check
+  /// counts it stalled (0: it must beat between any two checks). For a stage
+  /// whose iterations may take seconds without being stuck and that no safety
+  /// output waits for (tracking with many particles).
+  int Register(std::string name, std::chrono::steady_clock::duration allowance =
+                                     std::chrono::steady_clock::duration{}) {
     HG_CHECK(size_ < kCapacity);
     names_[size_] = std::move(name);
     seen_[size_] = counters_[size_].beats.load(std::memory_order_relaxed);
+    allowance_[size_] = allowance;
+    moved_at_[size_] = std::chrono::steady_clock::now();
     return size_++;
   }
 
@@ -61,9 +70,11 @@ class Heartbeats {
   bool AllMoved(std::string* stalled) {
     if (stalled != nullptr) stalled->clear();
     bool all = true;
+    const std::chrono::steady_clock::time_point at = std::chrono::steady_clock::now();
     for (int i = 0; i < size_; ++i) {
       const std::uint64_t now = counters_[i].beats.load(std::memory_order_relaxed);
-      if (now == seen_[i]) {
+      if (now != seen_[i]) moved_at_[i] = at;
+      if (now == seen_[i] && at - moved_at_[i] >= allowance_[i]) {
         all = false;
         if (stalled != nullptr) {
           if (!stalled->empty()) stalled->append(", ");
@@ -98,6 +109,9 @@ class Heartbeats {
 
   std::array<Counter, kCapacity> counters_{};
   std::array<std::uint64_t, kCapacity> seen_{};  // Checker only: counts at the previous check.
+  // Checker only: when a check last saw the counter move (or registration).
+  std::array<std::chrono::steady_clock::time_point, kCapacity> moved_at_{};
+  std::array<std::chrono::steady_clock::duration, kCapacity> allowance_{};  // Set-up only.
   std::array<std::string, kCapacity> names_{};
   int size_ = 0;  // Written at set-up only.
 };

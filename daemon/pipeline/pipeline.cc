@@ -387,10 +387,13 @@ void Pipeline::FusionLoop() {
     // In slices, so that Stop() ends the wait within one slice at any rate
     // (a period of a second would otherwise hold it up that long), and no
     // cycle runs after it (its cameras stopped, it would publish them stale).
+    // The heartbeat beats every slice: at 1 Hz a beat per cycle is as slow as
+    // the watchdog's checks, and jitter left some checks without one.
     constexpr auto kStopSlice = std::chrono::milliseconds(20);
     for (SteadyClock::time_point now = SteadyClock::now();
          now < next && !stop_.load(std::memory_order_relaxed); now = SteadyClock::now()) {
       std::this_thread::sleep_until(std::min(next, now + kStopSlice));
+      if (heartbeats_ != nullptr) heartbeats_->Beat(fusion_heartbeat_);
     }
     if (stop_.load(std::memory_order_relaxed)) break;
     next += period;

@@ -132,6 +132,7 @@ void ParticleFilter::Step(double dt_s, const VoxelMap& map, const LikelihoodWeig
   // 3. Weigh.
   double best = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
+    if ((i & 255) == 0 && Aborted()) return;
     const Ellipsoid& e = particles_[i];
     const int floor_layer = FloorLayerOf(map, e, options_.support_reach_m);
     const double score = Score(CountVoxels(map, e, own_region, SumAxis::kAuto, floor_layer), w);

@@ -5,6 +5,7 @@
 /// velocity and Gaussian diffusion, kept out of obstacles, weighted by the
 /// voxel likelihood and resampled systematically.
 
+#include <atomic>
 #include <cstdint>
 #include <random>
 #include <span>
@@ -114,6 +115,10 @@ class ParticleFilter {
   void Step(double dt_s, const VoxelMap& map, const LikelihoodWeights& weights,
             const CollisionWorld& world, std::span<const HalfSpace> own_region = {});
 
+  /// While `*abort` (may be null) is true, Step() returns early, leaving the
+  /// filter in no defined state: for stopping a tracker that is discarded.
+  void set_abort(const std::atomic<bool>* abort) { abort_ = abort; }
+
   /// Sets the number of particles to `count` in [1, options().num_particles]
   /// without allocating: an evenly spaced subset of the current particles,
   /// or each repeated (after a step they are equally weighted, so either
@@ -133,11 +138,15 @@ class ParticleFilter {
 
  private:
   void Estimate(double dt_s, bool update_velocity);
+  [[nodiscard]] bool Aborted() const {
+    return abort_ != nullptr && abort_->load(std::memory_order_relaxed);
+  }
   void Resample();
   void UpdateCloudBounds();
 
   ParticleFilterOptions options_;
   std::mt19937_64 rng_;
+  const std::atomic<bool>* abort_ = nullptr;
   std::normal_distribution<double> normal_{0.0, 1.0};
   std::uniform_real_distribution<double> uniform_{0.0, 1.0};
   std::vector<Ellipsoid> particles_;

@@ -209,6 +209,7 @@ void Tracker::Init() {
   slots_.resize(options_.max_tracks);
   for (Slot& s : slots_) {
     s.filter = std::make_unique<ParticleFilter>(options_.filter);
+    s.filter->set_abort(&abort_);
     s.region.reserve(options_.max_tracks);
   }
   gates_.reserve(options_.max_tracks);
@@ -310,6 +311,7 @@ void Tracker::Step(std::int64_t stamp_ns, bool births) {
   for (Slot& s : slots_) {
     if (!s.alive) continue;
     s.filter->Step(dt, map_, options_.likelihood, world_, s.region);
+    if (aborted()) return;
     Assess(&s, elapsed);
     const double timeout =
         s.age_s < options_.tentative_age_s

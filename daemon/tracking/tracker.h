@@ -6,6 +6,7 @@
 /// between tracks whose particle clouds overlap.
 
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -252,6 +253,12 @@ class Tracker {
   [[nodiscard]] const CollisionWorld& collision_world() const { return world_; }
   [[nodiscard]] const TrackerOptions& options() const { return options_; }
 
+  /// Makes a cycle in progress (on another thread) return soon, and every
+  /// later one at once, leaving the tracks in no defined state: for stopping
+  /// a tracker that is discarded (a daemon's shutdown). Any thread.
+  void Abort() { abort_.store(true, std::memory_order_relaxed); }
+  [[nodiscard]] bool aborted() const { return abort_.load(std::memory_order_relaxed); }
+
   /// The live tracks after the last cycle, by ascending id.
   [[nodiscard]] const std::vector<Track>& tracks() const { return tracks_; }
   /// The filter behind a live track (nullptr for an unknown id).
@@ -319,6 +326,7 @@ class Tracker {
   std::array<bool, pipeline::kRootsPerAxis * pipeline::kRootsPerAxis * pipeline::kRootsPerAxis>
       birth_roots_{};
   common::Box3 root_bounds_;
+  std::atomic<bool> abort_{false};  // Abort().  The filters hold its address.
   // Explaining away: per voxel the cameras that see it, the cameras' centres,
   // and per camera and supported track the ellipsoid in its unit-sphere frame.
   struct SightTest {

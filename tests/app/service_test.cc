@@ -98,6 +98,33 @@ TEST(HeartbeatsTest, EachCheckComparesWithThePreviousOne) {
   EXPECT_TRUE(beats.AllMoved(nullptr));
 }
 
+// A stage registered with an allowance (tracking: no safety output, cycles of
+// seconds on a loaded machine) counts as stalled only once it has not beaten
+// for that long, measured from the last check that saw it move.
+TEST(HeartbeatsTest, AStageWithAnAllowanceMayStayStillThatLong) {
+  Heartbeats beats;
+  const int a = beats.Register("a");
+  const int slow = beats.Register("slow", std::chrono::seconds(5));
+  const int brief = beats.Register("brief", milliseconds(200));
+  std::string stalled;
+  beats.Beat(a);
+  EXPECT_TRUE(beats.AllMoved(&stalled));
+  EXPECT_EQ(stalled, "");  // Within their allowances since registration.
+  std::this_thread::sleep_for(milliseconds(250));
+  beats.Beat(a);
+  EXPECT_FALSE(beats.AllMoved(&stalled));
+  EXPECT_EQ(stalled, "brief");
+  beats.Beat(a);
+  beats.Beat(brief);
+  EXPECT_TRUE(beats.AllMoved(&stalled));
+  beats.Beat(a);
+  EXPECT_TRUE(beats.AllMoved(&stalled));  // brief moved at the last check.
+  // A stage without allowance is stalled at the first check it did not beat.
+  EXPECT_FALSE(beats.AllMoved(&stalled));
+  EXPECT_EQ(stalled, "a");
+  (void)slow;
+}
+
 TEST(HeartbeatsTest, MatchesOracleOnRandomBeatPatterns) {
   std::mt19937_64 rng(0x5eed'0001);
   Heartbeats beats;
@@ -470,6 +497,44 @@ TEST(ServiceWatchdogTest, AFrozenPipelineStageStopsThePings) {
   ASSERT_TRUE(systemd.WaitFor(IsPing, kEventually, &seen));
   watchdog.Stop();
   pipeline.Stop();
+}
+
+// At a low rate (1 Hz) the fusion thread beats while it waits for the next
+// cycle, not once per cycle: a beat per second is as slow as the watchdog's
+// checks under WatchdogSec=2, and jitter left checks without a beat (systemd
+// would restart a healthy daemon).
+TEST(ServiceWatchdogTest, FusionAtOneHertzBeatsWhileItWaits) {
+  auto scene = std::make_shared<sim::Scene>();
+  scene->bounds.min = Eigen::Vector3d(0, 0, 0);
+  scene->bounds.max = Eigen::Vector3d(2, 2, 2);
+  sim::SceneCamera camera;
+  camera.model = scene::LookAtCamera({-0.5, -0.5, 2.2}, {1, 1, 0.8}, 160, 120, 130);
+  camera.model.name = "cam0";
+  scene->cameras.push_back(camera);
+  pipeline::PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 5;
+  options.publish_depth = 5;
+  options.rate_hz = 1.0;
+  std::vector<pipeline::PipelineCamera> cameras;
+  cameras.push_back({camera.model,
+                     std::make_unique<capture::SimSource>(scene, 0, 30.0, capture::SimClock::Now()),
+                     2000});
+  Heartbeats beats;
+  pipeline::Pipeline pipeline(options, std::move(cameras), {}, nullptr, &beats);
+  ASSERT_EQ(beats.name(2), "fusion");
+  pipeline.Start();
+  // Ten windows of 250 ms: a beat per cycle would reach at most three of them.
+  int windows_with_beats = 0;
+  std::uint64_t last = beats.beats(2);
+  for (int w = 0; w < 10; ++w) {
+    std::this_thread::sleep_for(milliseconds(250));
+    const std::uint64_t now = beats.beats(2);
+    windows_with_beats += now != last ? 1 : 0;
+    last = now;
+  }
+  pipeline.Stop();
+  EXPECT_GE(windows_with_beats, 8);
 }
 
 TEST(ServiceWatchdogTest, WithoutSystemdItStillDetectsStalls) {

@@ -1,8 +1,11 @@
 #include "tracking/tracker.h"
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -126,6 +129,50 @@ TEST(TrackerTest, BirthOnEntryDeathOnExit) {
 // gets an object track, never published. A person who comes in standing and
 // then crouches to the parcel's height keeps the track. Someone crouching when
 // tracking starts is an object until they stand up.
+// Abort() cuts a cycle in progress short (a daemon's stop with many particles:
+// a cycle of seconds held SIGTERM up), and every later one.
+TEST(TrackerTest, AbortCutsACycleShort) {
+  TrackerOptions options;
+  options.filter.num_particles = 20000;
+  Tracker tracker = OpenCellTracker(options);
+  const std::vector<Ellipsoid> people = {Person(Vector3d(1.0, 1.0, 0.9)),
+                                         Person(Vector3d(3.0, 3.0, 0.9))};
+  int frame = 0;
+  for (; frame < 2; ++frame) {
+    SetBlobs(&tracker, people);
+    tracker.Step(StampNs(frame));
+  }
+  ASSERT_EQ(tracker.tracks().size(), 2u);
+  using Clock = std::chrono::steady_clock;
+  SetBlobs(&tracker, people);
+  Clock::time_point start = Clock::now();
+  tracker.Step(StampNs(frame++));
+  const Clock::duration whole = Clock::now() - start;
+  ASSERT_EQ(tracker.tracks().size(), 2u);
+
+  SetBlobs(&tracker, people);
+  std::atomic<bool> started{false};
+  Clock::time_point ended;
+  std::thread cycle([&] {
+    started.store(true);
+    tracker.Step(StampNs(frame));
+    ended = Clock::now();
+  });
+  while (!started.load()) std::this_thread::yield();
+  std::this_thread::sleep_for(whole / 10);
+  const Clock::time_point aborted_at = Clock::now();
+  tracker.Abort();
+  cycle.join();
+  EXPECT_TRUE(tracker.aborted());
+  const auto after_abort =
+      std::chrono::duration_cast<std::chrono::milliseconds>(ended - aborted_at);
+  const auto whole_ms = std::chrono::duration_cast<std::chrono::milliseconds>(whole);
+  EXPECT_LT(after_abort, whole_ms / 3) << "a whole cycle takes " << whole_ms.count() << " ms";
+  start = Clock::now();
+  tracker.Step(StampNs(frame + 1));  // Later cycles return at once.
+  EXPECT_LT(Clock::now() - start, whole / 3);
+}
+
 TEST(TrackerTest, OnlyStandingPeopleStartTracks) {
   Tracker tracker = OpenCellTracker();
   const Ellipsoid parcel{Vector3d(3.0, 3.0, 0.3), Vector3d(0.35, 0.35, 0.3)};
