@@ -1,11 +1,17 @@
 #include "app/run.h"
 
+#include <semaphore.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <thread>
 
@@ -35,7 +41,48 @@ std::atomic<bool> g_stop{false};
 /// TimeoutStartSec in systemd/hullguardd.service leaves room for it).
 constexpr std::chrono::seconds kReadyWait{15};
 
-void OnSignal(int /*signal*/) { g_stop.store(true); }
+// Posted by OnSignal (sem_post is async-signal-safe) and by MarkRunning():
+// wakes the start-up stop guard.
+sem_t g_stop_posted;
+// The daemon's main loop runs (RunPipeline, LearnBackground): a stop from
+// here on is handled there, within its second.
+std::atomic<bool> g_running{false};
+// How long a stop during start-up may wait for the next step boundary.
+constexpr std::chrono::milliseconds kStartUpStopGrace{500};
+
+void OnSignal(int /*signal*/) {
+  g_stop.store(true);
+  sem_post(&g_stop_posted);
+}
+
+// Start-up runs steps that take seconds without looking at g_stop (loading
+// scenes, the tracking voxels of a fine grid, obstacle depth maps): a stop
+// that no step boundary takes up within kStartUpStopGrace ends the process
+// here, with the exit code of a clean stop. Nothing is running yet that a
+// clean stop would finish: no sample was published, nothing is being written.
+void StartUpStopGuard() {
+  for (;;) {
+    while (sem_wait(&g_stop_posted) != 0) {
+    }
+    if (g_running.load()) return;
+    if (!g_stop.load()) continue;
+    const auto until = std::chrono::steady_clock::now() + kStartUpStopGrace;
+    while (std::chrono::steady_clock::now() < until) {
+      if (g_running.load()) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    if (g_running.load()) return;
+    static constexpr char kMessage[] = "hullguardd: stopped during start-up\n";
+    (void)!write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+    _exit(0);
+  }
+}
+
+// The main loop runs: the start-up guard leaves stops to it.
+void MarkRunning() {
+  g_running.store(true);
+  sem_post(&g_stop_posted);
+}
 
 std::atomic<bool> g_dump{false};
 
@@ -93,6 +140,11 @@ void LogHealth(const pipeline::OccupancySnapshot& s, const std::string& line,
 }  // namespace
 
 void InstallStopSignals() {
+  static std::once_flag guard_started;
+  std::call_once(guard_started, [] {
+    sem_init(&g_stop_posted, 0, 0);
+    std::thread(StartUpStopGuard).detach();
+  });
   std::signal(SIGTERM, OnSignal);
   std::signal(SIGINT, OnSignal);
   // Also without a black box: SIGUSR1's default action would end the daemon.
@@ -232,6 +284,7 @@ int RunPipeline(const Config& config, double duration_s) {
   const auto start = std::chrono::steady_clock::now();
   auto next_report = start + std::chrono::seconds(1);
   auto next_publisher_check = start;
+  MarkRunning();
   while (!g_stop.load()) {
     heartbeats.Beat(main_heartbeat);
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -344,6 +397,7 @@ int LearnBackground(const Config& config, double timeout_s) {
   log::Info("learning the background of {} cameras into {}; the cell must be empty", n,
             config.background.keep_dir);
   pipeline.Start();
+  MarkRunning();
   const auto start = std::chrono::steady_clock::now();
   const auto limit = std::chrono::duration<double>(timeout_s);
   // Per camera: whether it is done (kept, failed to keep, or a mask source
