@@ -24,7 +24,8 @@ const char* StateName(pipeline::CameraState s) {
 }
 
 std::string HealthLine(const pipeline::OccupancySnapshot& s,
-                       const std::optional<TrackingStats>& tracking, bool foreign_publisher) {
+                       const std::optional<TrackingStats>& tracking, bool foreign_publisher,
+                       std::uint64_t failed_writes) {
   const double cell = s.bounds.Size().prod() / static_cast<double>(1ULL << (3 * s.depth));
   // An aborted update says how far it refined: cells of that size everywhere.
   char aborted[96] = "";
@@ -48,7 +49,8 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s,
                 "cycle %llu %s%s occupied %.3f m^3 occluded %.3f m^3 octree %.1f ms cycle %.1f ms "
                 "skew %.1f ms deadline misses %llu missed cycles %llu |",
                 static_cast<unsigned long long>(s.sequence),
-                s.health.degraded || foreign_publisher ? "DEGRADED" : "ok", aborted,
+                s.health.degraded || foreign_publisher || failed_writes > 0 ? "DEGRADED" : "ok",
+                aborted,
                 cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occupied)),
                 cell * static_cast<double>(pipeline::OccupancySnapshot::Cells(s.occluded)),
                 s.health.octree_ms, s.health.cycle_ms, s.health.skew_ms,
@@ -56,6 +58,9 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s,
                 static_cast<unsigned long long>(s.health.missed_cycles));
   std::string line = head;
   if (foreign_publisher) line.insert(line.size() - 2, " another publisher on the topics");
+  if (failed_writes > 0) {
+    line.insert(line.size() - 2, " DDS writes failed " + std::to_string(failed_writes));
+  }
   if (s.health.phase_lock && !s.health.phase_locked) {
     line.insert(line.size() - 2, " phase unlocked");  // Before " |".
   }

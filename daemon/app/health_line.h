@@ -21,10 +21,12 @@ namespace hg::app {
 /// `foreign_publisher`: another publisher writes this daemon's topics, as
 /// the status samples say), how far an aborted update refined, volumes,
 /// times, then the tracker's figures (`tracking`, when it runs) and each
-/// camera's state, frame rate and fault.
+/// camera's state, frame rate and fault. `failed_writes`: DDS writes refused
+/// in the last second (DEGRADED while there are any: what the controllers
+/// should have received did not go out).
 [[nodiscard]] std::string HealthLine(const pipeline::OccupancySnapshot& s,
                                      const std::optional<TrackingStats>& tracking,
-                                     bool foreign_publisher);
+                                     bool foreign_publisher, std::uint64_t failed_writes = 0);
 
 /// Tells once per run when a camera has been mostly foreground
 /// (pipeline::Pipeline::ForegroundHeavySince()) for `after` or longer.

@@ -192,6 +192,8 @@ int RunPipeline(const Config& config, double duration_s) {
   // the fusion cycle never waits on the network.
   std::unique_ptr<SnapshotStage> publish_stage;
   std::function<void()> check_publisher = [] {};
+  // DDS writes refused since start (0 without DDS).
+  std::function<std::uint64_t()> failed_writes_total = [] { return std::uint64_t{0}; };
   // Writers of the daemon's topics besides its own (checked from the main
   // loop): while there are any, the health line, STATUS= and the black box's
   // trigger say degraded, as the status samples do.
@@ -213,8 +215,13 @@ int RunPipeline(const Config& config, double duration_s) {
     };
   }
   // From the main loop: another publisher on the topics, and samples too old
-  // to send, each logged when it changes.
+  // to send, each logged when it changes; refused writes at most every 10 s.
   std::uint64_t stale_seen = 0;
+  std::uint64_t failures_logged = 0;
+  std::chrono::steady_clock::time_point failures_logged_at;
+  failed_writes_total = [&publisher] {
+    return publisher.write_failures() + publisher.tracks_write_failures();
+  };
   check_publisher = [&] {
     const int others = publisher.CheckOtherPublishers();
     if (others > 0 && other_publishers == 0) {
@@ -234,6 +241,19 @@ int RunPipeline(const Config& config, double duration_s) {
           "stopped or starved of CPU); {} since start",
           stale - stale_seen, stale);
       stale_seen = stale;
+    }
+    const std::uint64_t failures = failed_writes_total();
+    const auto now = std::chrono::steady_clock::now();
+    if (failures != failures_logged &&
+        (failures_logged_at == std::chrono::steady_clock::time_point{} ||
+         now - failures_logged_at >= std::chrono::seconds(10))) {
+      log::Error(
+          "DDS: {} write(s) refused by Cyclone DDS ({} since start; occupancy and status {}, "
+          "tracks {}): the controllers miss what was refused",
+          failures - failures_logged, failures, publisher.write_failures(),
+          publisher.tracks_write_failures());
+      failures_logged = failures;
+      failures_logged_at = now;
     }
   };
 #else
@@ -284,6 +304,8 @@ int RunPipeline(const Config& config, double duration_s) {
   const auto start = std::chrono::steady_clock::now();
   auto next_report = start + std::chrono::seconds(1);
   auto next_publisher_check = start;
+  std::uint64_t failed_writes_seen = 0;  // At the last health line.
+  std::uint64_t failed_writes_last_second = 0;
   MarkRunning();
   while (!g_stop.load()) {
     heartbeats.Beat(main_heartbeat);
@@ -311,7 +333,8 @@ int RunPipeline(const Config& config, double duration_s) {
     if (black_box && config.blackbox.on_degraded) {
       if (const auto s = pipeline.Latest(); s && s->sequence != blackbox_seen) {
         blackbox_seen = s->sequence;
-        degraded_trigger.Observe(s->health.degraded || other_publishers > 0);
+        degraded_trigger.Observe(s->health.degraded || other_publishers > 0 ||
+                                 failed_writes_last_second > 0);
       }
       if (degraded_trigger.ShouldDump(now, black_box->accepting()) &&
           black_box->RequestDump("degraded")) {
@@ -346,9 +369,13 @@ int RunPipeline(const Config& config, double duration_s) {
                                             std::chrono::duration<double>(now - *since).count()));
         }
       }
+      const std::uint64_t failed_writes = failed_writes_total();
+      failed_writes_last_second = failed_writes - failed_writes_seen;
+      failed_writes_seen = failed_writes;
       if (const auto s = pipeline.Latest()) {
-        const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0);
-        LogHealth(*s, line, other_publishers > 0);
+        const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0,
+                                            failed_writes_last_second);
+        LogHealth(*s, line, other_publishers > 0 || failed_writes_last_second > 0);
         watchdog.SetStatus(line);
       }
     }

@@ -203,7 +203,8 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   occ.depth = static_cast<std::uint8_t>(snapshot.depth);
   occ.knowledge_filter = snapshot.health.knowledge_filter;
   occ.filtered_m3 = static_cast<float>(snapshot.health.filtered_m3);
-  // As the status sample of this cycle says (below).
+  // As the status sample of this cycle says (below, which adds a failed
+  // occupancy write).
   occ.degraded = snapshot.health.degraded || other_publishers_.load(std::memory_order_relaxed);
   FillCells(snapshot.occupied, occ.occupied, s.occupied);
   FillCells(snapshot.occluded, occ.occluded, s.occluded);
@@ -212,7 +213,11 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   hullguard_Status& st = s.status;
   st.sequence = snapshot.sequence;
   st.stamp_ns = snapshot.stamp_ns;
-  st.degraded = occ.degraded;
+  // The occupancy goes first: a controller that gets this cycle's status but
+  // not its occupancy (the write failed) reads degraded.
+  const bool occupancy_written = occupancy_writer_.Write(&occ) >= 0;
+  if (!occupancy_written) write_failures_.fetch_add(1, std::memory_order_relaxed);
+  st.degraded = occ.degraded || !occupancy_written;
   Grow(st.cameras, s.cameras, health.cameras.size());
   for (std::size_t i = 0; i < health.cameras.size(); ++i) {
     const pipeline::CameraHealth& c = health.cameras[i];
@@ -240,8 +245,7 @@ void DdsPublisher::Publish(const pipeline::OccupancySnapshot& snapshot) {
   st.cycles = health.cycles;
   st.missed_cycles = health.missed_cycles;
 
-  if (occupancy_writer_.Write(&occ) < 0) ++write_failures_;
-  if (status_writer_.Write(&st) < 0) ++write_failures_;
+  if (status_writer_.Write(&st) < 0) write_failures_.fetch_add(1, std::memory_order_relaxed);
 }
 
 void DdsPublisher::PublishTracks(std::uint64_t sequence, std::int64_t stamp_ns, bool degraded,

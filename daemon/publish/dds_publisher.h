@@ -97,9 +97,12 @@ class DdsPublisher {
   void PublishTracks(std::uint64_t sequence, std::int64_t stamp_ns, bool degraded,
                      std::span<const tracking::Track> tracks);
 
-  /// Writes refused by Cyclone DDS since construction (a runtime fault, to be
-  /// reported in the daemon's status).
-  [[nodiscard]] std::uint64_t write_failures() const { return write_failures_; }
+  /// Writes refused by Cyclone DDS since construction (a runtime fault: the
+  /// daemon logs it and its health line says DEGRADED; a failed occupancy
+  /// write also makes that cycle's status sample degraded). Thread-safe.
+  [[nodiscard]] std::uint64_t write_failures() const {
+    return write_failures_.load(std::memory_order_relaxed);
+  }
   /// Tracks writes refused since construction. Thread-safe.
   [[nodiscard]] std::uint64_t tracks_write_failures() const {
     return tracks_write_failures_.load(std::memory_order_relaxed);
@@ -153,7 +156,7 @@ class DdsPublisher {
   std::atomic<std::uint64_t> stale_dropped_{0};
   std::unique_ptr<Samples> samples_;
   std::unique_ptr<TracksSamples> tracks_samples_;
-  std::uint64_t write_failures_ = 0;
+  std::atomic<std::uint64_t> write_failures_{0};  // Written by Publish(), read from any thread.
   std::atomic<std::uint64_t> tracks_write_failures_{0};
 };
 

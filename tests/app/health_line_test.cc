@@ -70,6 +70,18 @@ TEST(HealthLineTest, AnotherPublisherIsDegradedAndNamed) {
             "ok 30 fps cam1 ok 30 fps");
 }
 
+// DDS writes refused in the last second (Cyclone DDS out of resources, a
+// writer's history full): what the controllers should have had did not go
+// out, so the line says DEGRADED and how many, though the pipeline is well.
+TEST(HealthLineTest, RefusedDdsWritesAreDegradedAndCounted) {
+  EXPECT_EQ(HealthLine(Snapshot(), std::nullopt, false, 0).find("DEGRADED"), std::string::npos);
+  const std::string line = HealthLine(Snapshot(), std::nullopt, false, 61);
+  EXPECT_EQ(line,
+            "cycle 42 DEGRADED occupied 0.500 m^3 occluded 0.250 m^3 octree 12.3 ms cycle 20.0 ms "
+            "skew 1.5 ms deadline misses 3 missed cycles 1 DDS writes failed 61 | cam0 "
+            "ok 30 fps cam1 ok 30 fps");
+}
+
 TEST(HealthLineTest, TrackerFigures) {
   TrackingStats t;
   t.tracks = 2;
