@@ -199,9 +199,15 @@ int RunPipeline(const Config& config, double duration_s) {
   // trigger say degraded, as the status samples do.
   int other_publishers = 0;
 #ifdef HG_WITH_DDS
-  publish::DdsPublisher publisher(
-      {config.dds.domain_id, config.dds.topic_prefix, config.dds.enabled, config.tracking.enabled},
-      config.timing.rate_hz);
+  int longest_timeout_ms = 0;
+  for (const CameraConfig& c : config.cameras) {
+    longest_timeout_ms = std::max(longest_timeout_ms, c.timeout_ms);
+  }
+  const std::chrono::nanoseconds max_age = publish::MaxSampleAge(
+      std::chrono::milliseconds(longest_timeout_ms), config.timing.rate_hz);
+  publish::DdsPublisher publisher({config.dds.domain_id, config.dds.topic_prefix,
+                                   config.dds.enabled, config.tracking.enabled, max_age},
+                                  config.timing.rate_hz);
   if (config.dds.enabled) {
     publish_stage = std::make_unique<SnapshotStage>(
         "publish", [&publisher](const pipeline::OccupancySnapshot& s) { publisher.Publish(s); },
@@ -237,9 +243,9 @@ int RunPipeline(const Config& config, double duration_s) {
     const std::uint64_t stale = publisher.stale_dropped();
     if (stale != stale_seen) {
       log::Warn(
-          "{} sample(s) not published: older than 0.5 s when their turn came (the daemon was "
-          "stopped or starved of CPU); {} since start",
-          stale - stale_seen, stale);
+          "{} sample(s) not published: older than {:.2f} s when their turn came (the daemon was "
+          "stopped or starved of CPU, or no camera had a newer frame); {} since start",
+          stale - stale_seen, std::chrono::duration<double>(max_age).count(), stale);
       stale_seen = stale;
     }
     const std::uint64_t failures = failed_writes_total();

@@ -147,6 +147,13 @@ DdsPublisher::DdsPublisher(const PublisherConfig& config, double rate_hz)
 
 DdsPublisher::~DdsPublisher() = default;
 
+std::chrono::nanoseconds MaxSampleAge(std::chrono::milliseconds longest_camera_timeout,
+                                      double rate_hz) {
+  const std::chrono::nanoseconds cycles = OfferedDeadline(rate_hz);
+  return std::max<std::chrono::nanoseconds>(PublisherConfig::kMinMaxAge,
+                                            longest_camera_timeout + cycles);
+}
+
 bool DdsPublisher::TooOld(std::int64_t stamp_ns) {
   if (max_age_.count() <= 0) return false;
   timespec now{};

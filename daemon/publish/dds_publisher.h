@@ -31,9 +31,20 @@ struct PublisherConfig {
   /// turn to be written comes is not written (counted in stale_dropped()):
   /// after the process was stopped (SIGSTOP, a debugger, a frozen VM) or
   /// starved, the first sample would otherwise describe the cell as it was
-  /// then. Zero: no limit.
-  std::chrono::nanoseconds max_age = std::chrono::milliseconds(500);
+  /// then. Zero: no limit. The daemon takes the longer of kMinMaxAge and
+  /// its longest camera timeout plus two cycles (MaxSampleAge): a camera that
+  /// is ok by its own timeout keeps its samples published.
+  std::chrono::nanoseconds max_age = kMinMaxAge;
+  static constexpr std::chrono::milliseconds kMinMaxAge{500};
 };
+
+/// The max_age for a daemon whose longest camera timeout is
+/// `longest_camera_timeout` at `rate_hz`: the longer of
+/// PublisherConfig::kMinMaxAge and that timeout plus two cycles. A sample of
+/// frames each within its camera's timeout is published however slow the
+/// cameras (1.5 fps with a 1.5 s timeout: samples 0.7 s old were dropped).
+[[nodiscard]] std::chrono::nanoseconds MaxSampleAge(
+    std::chrono::milliseconds longest_camera_timeout, double rate_hz);
 
 /// Topic names for a prefix ("hullguard" -> "hullguard/occupancy").
 [[nodiscard]] std::string OccupancyTopicName(const std::string& prefix);

@@ -369,6 +369,16 @@ TEST(DdsPublisherTest, ASnapshotOlderThanTheMaximumAgeIsNotWritten) {
   EXPECT_EQ(publisher.write_failures(), 0u);
 }
 
+// The age limit follows the cameras: at least 0.5 s, else the longest camera
+// timeout plus two cycles (cameras at 1.5 fps with a 1.5 s timeout had every
+// other sample dropped while the status said ok).
+TEST(DdsPublisherTest, MaxSampleAgeCoversTheLongestCameraTimeout) {
+  using std::chrono::nanoseconds;
+  EXPECT_EQ(MaxSampleAge(milliseconds(200), 30.0), nanoseconds(milliseconds(500)));
+  EXPECT_EQ(MaxSampleAge(milliseconds(1500), 30.0), milliseconds(1500) + OfferedDeadline(30.0));
+  EXPECT_EQ(MaxSampleAge(milliseconds(400), 5.0), milliseconds(800));
+}
+
 // A second publisher under the same prefix on the domain (another daemon
 // with a copied config) is noticed: every status sample says degraded while
 // it is there, and not once it is gone.
