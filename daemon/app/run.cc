@@ -203,8 +203,8 @@ int RunPipeline(const Config& config, double duration_s) {
   for (const CameraConfig& c : config.cameras) {
     longest_timeout_ms = std::max(longest_timeout_ms, c.timeout_ms);
   }
-  const std::chrono::nanoseconds max_age = publish::MaxSampleAge(
-      std::chrono::milliseconds(longest_timeout_ms), config.timing.rate_hz);
+  const std::chrono::nanoseconds max_age =
+      publish::MaxSampleAge(std::chrono::milliseconds(longest_timeout_ms), config.timing.rate_hz);
   publish::DdsPublisher publisher({config.dds.domain_id, config.dds.topic_prefix,
                                    config.dds.enabled, config.tracking.enabled, max_age},
                                   config.timing.rate_hz);
