@@ -7,14 +7,25 @@ namespace hg::common {
 WorkerPool::WorkerPool(int num_threads) {
   HG_CHECK(num_threads >= 1);
   threads_.reserve(num_threads - 1);
-  for (int w = 1; w < num_threads; ++w) threads_.emplace_back([this, w] { WorkerLoop(w); });
+  try {
+    for (int w = 1; w < num_threads; ++w) threads_.emplace_back([this, w] { WorkerLoop(w); });
+  } catch (...) {
+    // No more threads to be had (std::system_error): the ones started are
+    // ended and joined, or their destruction would terminate the process.
+    StopAndJoin();
+    throw;
+  }
 }
 
-WorkerPool::~WorkerPool() {
+WorkerPool::~WorkerPool() { StopAndJoin(); }
+
+void WorkerPool::StopAndJoin() {
   stop_.store(true, std::memory_order_release);
   generation_.fetch_add(1, std::memory_order_acq_rel);
   generation_.notify_all();
-  for (auto& t : threads_) t.join();
+  for (auto& t : threads_) {
+    if (t.joinable()) t.join();
+  }
 }
 
 void WorkerPool::Drain(int worker) {

@@ -19,6 +19,8 @@ namespace hg::common {
 /// Thread-compatible: Run() must be called from one thread at a time.
 class WorkerPool {
  public:
+  /// @throws std::system_error when a thread cannot be started (those started
+  /// are ended and joined first).
   explicit WorkerPool(int num_threads);
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;
@@ -34,6 +36,7 @@ class WorkerPool {
 
  private:
   using TaskFn = void (*)(void* ctx, int task, int worker);
+  void StopAndJoin();
   template <class Fn>
   static void Invoke(void* ctx, int task, int worker) {
     (*static_cast<Fn*>(ctx))(task, worker);

@@ -107,6 +107,18 @@ PlacementIntrinsics LoadIntrinsics(const std::string& path) {
     const std::vector<double> d = Numbers(root["distortion"], 5, path, "distortion");
     std::copy(d.begin(), d.end(), intrinsics.distortion.begin());
   }
+  // The cameras file `place` writes must load in hullguardd and hullguard
+  // carve: the intrinsics pass the camera loader's own checks (image size,
+  // focal lengths and their ratio, principal point, distortion), with errors
+  // at this file's lines. The pose is a stand-in.
+  YAML::Node camera(YAML::NodeType::Map);
+  camera["name"] = "intrinsics";
+  for (const char* key : {"width", "height", "K", "distortion"}) {
+    if (root[key]) camera[key] = root[key];
+  }
+  camera["R"] = std::vector<double>{1, 0, 0, 0, 1, 0, 0, 0, 1};
+  camera["t"] = std::vector<double>{0, 0, 0};
+  (void)geometry::ParseCamera(camera, path);
   return intrinsics;
 }
 

@@ -182,6 +182,10 @@ Occluder MakeOccluder(const geometry::TriangleMesh& mesh) {
 
 }  // namespace
 
+// Limits of the model's size: beyond them a run takes hours.
+constexpr double kMaxVoxels = 2.0e7;
+constexpr double kMaxPersonSamples = 1.0e4;
+
 PlacementScene BuildPlacementScene(const sim::Scene& scene, const PlacementIntrinsics& intrinsics,
                                    const ModelOptions& options) {
   const std::string file = scene.source_file.empty() ? scene.name : scene.source_file;
@@ -211,16 +215,26 @@ PlacementScene BuildPlacementScene(const sim::Scene& scene, const PlacementIntri
   VoxelGrid& grid = out.grid;
   grid.bounds = scene.bounds;
   const Vector3d size = scene.bounds.Size();
-  std::array<int, 3> n{};
-  for (int a = 0; a < 3; ++a) {
-    n[a] = std::max(1, static_cast<int>(std::ceil(size[a] / options.voxel_m - 1e-9)));
+  // Counted in doubles first: a tiny voxel overflows an int (and became a
+  // single voxel).
+  std::array<double, 3> counts{};
+  for (int a = 0; a < 3; ++a)
+    counts[a] = std::max(1.0, std::ceil(size[a] / options.voxel_m - 1e-9));
+  if (counts[0] * counts[1] * counts[2] > kMaxVoxels) {
+    throw ConfigError::At(file, 0, "voxel: too small for this cell (more than 2e7 voxels)");
   }
+  std::array<int, 3> n{};
+  for (int a = 0; a < 3; ++a) n[a] = static_cast<int>(counts[a]);
   grid.nx = n[0];
   grid.ny = n[1];
   grid.nz = n[2];
   grid.cell_m = Vector3d(size.x() / n[0], size.y() / n[1], size.z() / n[2]);
-  if (static_cast<double>(n[0]) * n[1] * n[2] > 2.0e7) {
-    throw ConfigError::At(file, 0, "voxel: too small for this cell (more than 2e7 voxels)");
+  const double sample_columns = std::max(1.0, std::round(size.x() / options.person_spacing_m)) *
+                                std::max(1.0, std::round(size.y() / options.person_spacing_m));
+  if (sample_columns > kMaxPersonSamples) {
+    throw ConfigError::At(file, 0,
+                          "person spacing: too small for this cell (more than 10000 sample "
+                          "people; each is tested against every camera at every evaluation)");
   }
 
   out.obstacle.assign(grid.Count(), 0);

@@ -134,6 +134,32 @@ TEST_F(PlaceCliTest, BadRequestsExitWithTwoAndSayWhy) {
             std::string::npos)
       << bare.err;
   EXPECT_FALSE(fs::exists(dir_ / "x.yaml"));
+
+  // Output paths that cannot be written are named before the search (which
+  // may take minutes), and nothing is left behind.
+  const auto unwritable = testing::RunTool(
+      HG_HULLGUARD_BIN, "place --scene " + PaperCell() + " --cameras 2 --out " +
+                            Path("missing/dir/cams.yaml") + " --report " + Path("r"));
+  EXPECT_EQ(unwritable.code, 2);
+  EXPECT_NE(unwritable.err.find("place: --out: cannot write " + Path("missing/dir/cams.yaml")),
+            std::string::npos)
+      << unwritable.err;
+  EXPECT_EQ(unwritable.err.find("evaluations"), std::string::npos) << "searched first";
+  std::ofstream(Path("file")) << "a file\n";
+  const auto report_on_file = Place(PaperCell(), "--cameras 2", "file");
+  EXPECT_EQ(report_on_file.code, 2);
+  EXPECT_NE(report_on_file.err.find("--report: " + Path("file") + " exists and is not a directory"),
+            std::string::npos)
+      << report_on_file.err;
+  EXPECT_FALSE(fs::exists(dir_ / "file.yaml"));
+  // Thread counts and budgets out of range: one line and exit 2 (100000
+  // threads aborted the process).
+  for (const std::string& bad : {std::string("--threads 100000"), std::string("--threads 0"),
+                                 std::string("--budget -5"), std::string("--coverage-weight -1")}) {
+    const auto r = Place(PaperCell(), "--cameras 2 " + bad, "x");
+    EXPECT_EQ(r.code, 2) << bad << ": " << r.err;
+    EXPECT_NE(r.err.find(bad.substr(0, bad.find(' '))), std::string::npos) << r.err;
+  }
 }
 
 }  // namespace

@@ -237,6 +237,17 @@ TEST(MountingTest, IntrinsicsFromAFileInBothForms) {
   std::ofstream(dir / "bad.yaml") << "width: 640\nheight: 480\nK: [500, 0, 319.5]\n";
   EXPECT_EQ(Message([&] { (void)LoadIntrinsics((dir / "bad.yaml").string()); }),
             (dir / "bad.yaml").string() + ":3: K: expected 9 numbers");
+  // Intrinsics the camera loader refuses would give a cameras file that
+  // hullguardd and hullguard carve cannot load: refused here, at their line.
+  std::ofstream(dir / "huge.yaml")
+      << "width: 10000\nheight: 8000\nK: [5000, 0, 4999.5, 0, 5000, 3999.5, 0, 0, 1]\n";
+  const std::string huge = Message([&] { (void)LoadIntrinsics((dir / "huge.yaml").string()); });
+  EXPECT_NE(huge.find((dir / "huge.yaml").string() + ":"), std::string::npos) << huge;
+  EXPECT_NE(huge.find("too large"), std::string::npos) << huge;
+  std::ofstream(dir / "ratio.yaml")
+      << "width: 640\nheight: 480\nK: [5000, 0, 319.5, 0, 400, 239.5, 0, 0, 1]\n";
+  const std::string ratio = Message([&] { (void)LoadIntrinsics((dir / "ratio.yaml").string()); });
+  EXPECT_NE(ratio.find("focal lengths more than 10 times apart"), std::string::npos) << ratio;
   fs::remove_all(dir);
   const sim::Scene none =
       SceneFromText("scene: {name: n, bounds: {min: [0, 0, 0], max: [4, 3, 3]}}\n");
@@ -250,6 +261,35 @@ TEST(MountingTest, RequestsAreChecked) {
   EXPECT_EQ(Message([] { CheckRequest(3, 4, "place"); }),
             "place: --min-views: must be between 1 and --cameras (3), got 4");
   EXPECT_EQ(Message([] { CheckRequest(3, 3, "place"); }), "(no error)");
+}
+
+// A voxel or a person spacing too small for the cell is refused by name: a
+// voxel of 1e-9 m overflowed the count to a single voxel (a run with score 0
+// and exit 0), a spacing of 1e-12 m ran for ever.
+TEST(PlacementSceneTest, TooFineAModelIsRefused) {
+  const sim::Scene scene =
+      SceneFromText("scene: {name: box, bounds: {min: [0, 0, 0], max: [4, 4, 3]}}\n");
+  for (const double voxel : {1e-9, 1e-300, 0.001}) {
+    ModelOptions options;
+    options.voxel_m = voxel;
+    EXPECT_EQ(Message([&] { (void)BuildPlacementScene(scene, SmallIntrinsics(), options); }),
+              "box: voxel: too small for this cell (more than 2e7 voxels)")
+        << voxel;
+  }
+  for (const double spacing : {1e-12, 0.01}) {
+    ModelOptions options;
+    options.person_spacing_m = spacing;
+    EXPECT_NE(Message([&] {
+                (void)BuildPlacementScene(scene, SmallIntrinsics(), options);
+              }).find("person spacing: too small for this cell"),
+              std::string::npos)
+        << spacing;
+  }
+  ModelOptions fine;
+  fine.person_spacing_m = 0.05;  // 80 x 80 cells, allowed (those at the walls hold no person).
+  const std::size_t samples = BuildPlacementScene(scene, SmallIntrinsics(), fine).samples.size();
+  EXPECT_GT(samples, 4000u);
+  EXPECT_LE(samples, 6400u);
 }
 
 // ---------------------------------------------------------------------------

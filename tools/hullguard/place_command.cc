@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -111,11 +112,49 @@ class ProgressPrinter {
   int last_tenth_ = -1;
 };
 
+// A file that can be written at `path` (its folder exists and is writable;
+// the path is no folder itself), checked without creating it.
+void CheckCanWrite(const std::string& path, const char* flag) {
+  namespace fs = std::filesystem;
+  const fs::path p(path);
+  std::error_code ec;
+  if (fs::is_directory(p, ec)) {
+    throw common::ConfigError(std::string("place: ") + flag + ": " + path + " is a directory");
+  }
+  const fs::path folder = p.has_parent_path() ? p.parent_path() : fs::path(".");
+  if (!fs::is_directory(folder, ec) || access(folder.c_str(), W_OK) != 0) {
+    throw common::ConfigError(std::string("place: ") + flag + ": cannot write " + path + " (" +
+                              folder.string() + " is not a writable directory)");
+  }
+}
+
+// A directory at `path` that exists and is writable, or whose nearest
+// existing ancestor is a writable directory.
+void CheckCanCreateDirectory(const std::string& path, const char* flag) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::path p = fs::absolute(fs::path(path), ec);
+  if (ec) p = fs::path(path);
+  if (fs::exists(p, ec) && !fs::is_directory(p, ec)) {
+    throw common::ConfigError(std::string("place: ") + flag + ": " + path +
+                              " exists and is not a directory");
+  }
+  while (!fs::exists(p, ec) && p.has_parent_path() && p.parent_path() != p) p = p.parent_path();
+  if (!fs::is_directory(p, ec) || access(p.c_str(), W_OK) != 0) {
+    throw common::ConfigError(std::string("place: ") + flag + ": cannot create or write " +
+                              path + " (" + p.string() + " is not a writable directory)");
+  }
+}
+
 int RunPlace(const PlaceFlags& f) {
   const auto t_begin = std::chrono::steady_clock::now();
   const int min_views = f.min_views_given ? f.min_views : std::min(2, std::max(1, f.cameras));
   placement::CheckRequest(f.cameras, min_views, "place");
   if (f.threads < 1) throw common::ConfigError("place: --threads: must be at least 1");
+
+  // The output paths before the search, which may take minutes.
+  CheckCanWrite(f.out, "--out");
+  CheckCanCreateDirectory(f.report, "--report");
 
   const sim::Scene scene = sim::LoadScene(f.scene);
   const placement::PlacementIntrinsics intrinsics = f.intrinsics.empty()
@@ -217,9 +256,12 @@ void RegisterPlace(CLI::App& app, int* exit_code) {
                       "K of the K-coverage term (default: 2, or 1 for one camera)");
   cmd->add_option("--seed", flags->seed, "Seed of the search; same seed, same cameras file");
   cmd->add_option("--budget", flags->budget,
-                  "Objective evaluations of the global search (default 2000 + 1000 per camera)");
+                  "Objective evaluations of the global search (default, or 0: 2000 + 1000 per "
+                  "camera)")
+      ->check(hg::cli::Range(0, 100'000'000));
   cmd->add_option("--local-budget", flags->local_budget,
-                  "Objective evaluations of the local refinement (default 150 per camera)");
+                  "Objective evaluations of the local refinement (default, or 0: 150 per camera)")
+      ->check(hg::cli::Range(0, 100'000'000));
   cmd->add_option("--intrinsics", flags->intrinsics,
                   "Camera intrinsics: a cameras file (first camera) or width/height/K; default: "
                   "the scene's first camera");
@@ -236,11 +278,12 @@ void RegisterPlace(CLI::App& app, int* exit_code) {
       ->check(hg::cli::kFinite);
   cmd->add_option("--coverage-weight", flags->coverage_weight,
                   "Weight of the K-coverage share in the score")
-      ->check(hg::cli::kFinite);
+      ->check(hg::cli::kNonNegative);
   cmd->add_option("--sigma", flags->sigma,
                   "Initial CMA-ES step, as a share of each variable's range")
       ->check(hg::cli::kFinite);
-  cmd->add_option("--threads", flags->threads, "Evaluation threads (results do not depend on it)");
+  cmd->add_option("--threads", flags->threads, "Evaluation threads (results do not depend on it)")
+      ->check(hg::cli::Range(1, 64));
   cmd->add_option("--out", flags->out, "Camera block to write (daemon config format)")->required();
   cmd->add_option("--report", flags->report, "Report directory (report.md, report.json, PNGs)")
       ->required();
