@@ -141,8 +141,8 @@ void CheckCanCreateDirectory(const std::string& path, const char* flag) {
   }
   while (!fs::exists(p, ec) && p.has_parent_path() && p.parent_path() != p) p = p.parent_path();
   if (!fs::is_directory(p, ec) || access(p.c_str(), W_OK) != 0) {
-    throw common::ConfigError(std::string("place: ") + flag + ": cannot create or write " +
-                              path + " (" + p.string() + " is not a writable directory)");
+    throw common::ConfigError(std::string("place: ") + flag + ": cannot create or write " + path +
+                              " (" + p.string() + " is not a writable directory)");
   }
 }
 
