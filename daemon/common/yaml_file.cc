@@ -1,5 +1,7 @@
 #include "common/yaml_file.h"
 
+#include <algorithm>
+#include <cstddef>
 #include <fstream>
 #include <vector>
 
@@ -9,6 +11,14 @@
 namespace hg::common {
 
 YAML::Node ParseYaml(const std::string& text, const std::string& file) {
+  // yaml-cpp takes a NUL byte into keys and values, and messages naming them
+  // were cut or garbled by it: a file holding one is no YAML text.
+  if (const std::size_t nul = text.find('\0'); nul != std::string::npos) {
+    const auto line =
+        std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(nul), '\n');
+    throw ConfigError::At(file, static_cast<int>(line) + 1,
+                          "a NUL byte: not a YAML text file (binary, or saved as UTF-16?)");
+  }
   try {
     // Every document: a second one (after `---`) would otherwise be dropped
     // unread, settings and all.
