@@ -440,7 +440,7 @@ TEST(SceneErrorTest, OverflowingNumbersAreRefused) {
   ExpectError(Replace(kBase, "imaging: {noise_sigma: 1.0}", "imaging: {<<: {noise_sigma: 1.0}}"),
               30, "imaging: merge keys ('<<') are not read: write the keys out");
   // A NUL byte went into the key, and the message naming it was cut there.
-  ExpectError(Replace(kBase, "imaging: {noise_sigma", std::string("imag\0ing: {noise_sigma", 21)),
+  ExpectError(Replace(kBase, "imaging: {noise_sigma", std::string("imag\0ing: {noise_sigma", 22)),
               30, "a NUL byte: not a YAML text file (binary, or saved as UTF-16?)");
 }
 
