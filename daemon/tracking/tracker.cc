@@ -235,6 +235,16 @@ void Tracker::Init() {
   }
 }
 
+bool Tracker::SideBySide(const Ellipsoid& a, const Ellipsoid& b) {
+  const double bottom =
+      std::max(a.centre_W.z() - a.half_axes_m.z(), b.centre_W.z() - b.half_axes_m.z());
+  const double top =
+      std::min(a.centre_W.z() + a.half_axes_m.z(), b.centre_W.z() + b.half_axes_m.z());
+  const double shorter = 2.0 * std::min(a.half_axes_m.z(), b.half_axes_m.z());
+  const Eigen::Vector2d apart = (a.centre_W - b.centre_W).head<2>();
+  return top - bottom >= kSideBySideShare * shorter && apart.squaredNorm() > 1e-6;
+}
+
 void Tracker::Update(const pipeline::OccupancySnapshot& snapshot) {
   map_.SetUnknownFromSnapshot(snapshot);
   const bool whole =
@@ -299,8 +309,16 @@ void Tracker::Step(std::int64_t stamp_ns, bool births) {
       if (!slots_[j].alive) continue;
       const FilterEstimate& ej = slots_[j].filter->estimate();
       if (!Overlap(ei.cloud_bounds, ej.cloud_bounds, options_.overlap_margin_m)) continue;
-      const Vector3d& ci = ei.ellipsoid.centre_W;
-      const Vector3d& cj = ej.ellipsoid.centre_W;
+      Vector3d ci = ei.ellipsoid.centre_W;
+      Vector3d cj = ej.ellipsoid.centre_W;
+      if (SideBySide(ei.ellipsoid, ej.ellipsoid)) {
+        // A vertical plane: bisecting the 3-D centres of two people who cross
+        // close by tilted towards horizontal once their estimates drifted apart
+        // in height, and then each filter fed on the upper or the lower halves
+        // of both bodies, stacked between them. One above the other (on and
+        // under a table) keeps the 3-D bisector.
+        cj.z() = ci.z();
+      }
       slots_[i].region.push_back(HalfSpace::NearerTo(ci, cj));
       slots_[j].region.push_back(HalfSpace::NearerTo(cj, ci));
     }

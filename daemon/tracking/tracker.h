@@ -266,6 +266,12 @@ class Tracker {
   [[nodiscard]] const TrackerStats& stats() const { return stats_; }
 
  private:
+  /// Two ellipsoids whose heights overlap by at least this share of the
+  /// shorter one stand side by side: their evidence is split by a vertical
+  /// plane (Step(), 1.).
+  static constexpr double kSideBySideShare = 0.5;
+  [[nodiscard]] static bool SideBySide(const Ellipsoid& a, const Ellipsoid& b);
+
   struct Slot {
     std::unique_ptr<ParticleFilter> filter;
     bool alive = false;
