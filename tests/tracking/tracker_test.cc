@@ -350,14 +350,13 @@ TEST(TrackerTest, PeopleCrossingCloselyKeepATrackEach) {
     for (std::uint64_t seed = 1; seed <= 3; ++seed) {
       TrackerOptions options;
       options.seed = seed;
-      Tracker tracker(options,
-                      VoxelMap(g, std::vector<VoxelState>(g.size(), VoxelState::kFree)),
+      Tracker tracker(options, VoxelMap(g, std::vector<VoxelState>(g.size(), VoxelState::kFree)),
                       CollisionWorld());
       int misses = 0;
       double max_dz = 0.0;
       for (int f = 0; f < 150; ++f) {
         const double t = f / 30.0;
-        const Vector3d a(0.3 + 0.9 * t, 2.5, 0.9);           // Walks along +x.
+        const Vector3d a(0.3 + 0.9 * t, 2.5, 0.9);            // Walks along +x.
         const Vector3d b(1.5, 3.7 - 0.9 * (t + lead), 0.88);  // Along -y, ahead.
         std::vector<std::uint32_t> voxels;
         AppendVoxelsInside(g, {a, Vector3d(0.25, 0.2, 0.88)}, &voxels);
