@@ -1,6 +1,7 @@
 #include "octree/ply.h"
 
 #include <fstream>
+#include <limits>
 #include <vector>
 
 #include "common/config_error.h"
@@ -21,11 +22,13 @@ void WriteOccupiedPly(const Octree& tree, const std::string& path) {
   out << "ply\nformat ascii 1.0\ncomment hullguard occupied (red 200 40 40) and occluded (grey 128 "
          "128 128) leaves as boxes\n"
       << "element vertex " << 8 * leaves.size()
-      << "\nproperty float x\nproperty float y\nproperty float z\n"
+      << "\nproperty double x\nproperty double y\nproperty double z\n"
       << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
       << "element face " << 6 * leaves.size() << "\nproperty list uchar int vertex_indices\n"
       << "end_header\n";
-  out.precision(9);
+  // Doubles, every digit: a cell far from the origin (1.6 cm at a million
+  // metres) is no float, and 9 digits rounded its faces inward.
+  out.precision(std::numeric_limits<double>::max_digits10);
   for (const Leaf& l : leaves) {
     const char* colour = l.state == LeafState::kOccluded ? " 128 128 128\n" : " 200 40 40\n";
     for (int i = 0; i < 8; ++i) {

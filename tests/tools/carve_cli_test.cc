@@ -398,6 +398,54 @@ TEST_F(CarveCliTest, ProjectionMatrixCameraCarvesLikeKRt) {
   EXPECT_EQ(krt_q.out, proj_q.out);
 }
 
+// A cell a million metres from the origin: the PLY's boxes are its cells to
+// the bit (they were floats of 9 digits: a 1.6 cm cell at 1e6 m became a box
+// of 0 or 6.25 cm, and half the boxes did not hold their cells).
+TEST_F(CarveCliTest, PlyBoxesAreTheirCellsFarFromTheOrigin) {
+  std::ofstream(Path("far.yaml")) << "cameras:\n"
+                                  << LookAtCameraYaml("top", 64, 48, "[999992, 2, 10]",
+                                                      "[999992, 2, 0]");
+  common::ImageU8 mask(64, 48);
+  for (int v = 18; v < 30; ++v) {
+    for (int u = 26; u < 38; ++u) mask.At(u, v) = 255;
+  }
+  silhouette::WriteGreyImage(Path("far.png"), mask);
+  const ProcessResult r =
+      Hullguard("carve --cameras " + Path("far.yaml") + " --masks " + Path("far.png") +
+                " --bounds 999990 0 0 999994 4 4 --depth 8 --out " + Path("far.ply"));
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream ply(Path("far.ply"));
+  std::string line;
+  long long vertices = -1;
+  bool doubles = false;
+  while (std::getline(ply, line) && line != "end_header") {
+    if (line.rfind("element vertex ", 0) == 0) vertices = std::stoll(line.substr(15));
+    doubles = doubles || line == "property double x";
+  }
+  EXPECT_TRUE(doubles);
+  ASSERT_GT(vertices, 0);
+  const double cell = 4.0 / 256.0;
+  long long wrong = 0;
+  for (long long box = 0; box < vertices / 8; ++box) {
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(1e300), hi = -lo;
+    for (int v = 0; v < 8; ++v) {
+      ASSERT_TRUE(std::getline(ply, line));
+      std::istringstream ss(line);
+      Eigen::Vector3d p;
+      ASSERT_TRUE(ss >> p.x() >> p.y() >> p.z()) << line;
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    // Whole cells (or unions of them): faces on the grid, edges of whole cells.
+    const double ix = (lo.x() - 999990.0) / cell, ex = (hi.x() - lo.x()) / cell;
+    wrong +=
+        std::abs(ix - std::round(ix)) > 1e-6 || std::abs(ex - std::round(ex)) > 1e-6 || ex < 0.5
+            ? 1
+            : 0;
+  }
+  EXPECT_EQ(wrong, 0) << "of " << vertices / 8 << " boxes";
+}
+
 TEST_F(CarveCliTest, JsonAndPly) {
   // A solid obstacle: no camera sees inside it, so the result has occluded leaves.
   geometry::WriteObj(
