@@ -423,26 +423,45 @@ TEST(ServiceWatchdogTest, PingsOnlyWhileEveryStageMoves) {
   EXPECT_FALSE(systemd.WaitFor(IsPing, milliseconds(300), &seen));
 }
 
+// A 2 m cell with one simulated camera (no people), for the real pipeline.
+struct OneCamera {
+  std::shared_ptr<sim::Scene> scene;
+  pipeline::PipelineOptions options;
+  int timeout_ms = 200;
+  [[nodiscard]] std::vector<pipeline::PipelineCamera> Cameras() const {
+    std::vector<pipeline::PipelineCamera> cameras;
+    cameras.push_back(
+        {scene->cameras[0].model,
+         std::make_unique<capture::SimSource>(scene, 0, 30.0, capture::SimClock::Now()),
+         timeout_ms});
+    return cameras;
+  }
+};
+
+OneCamera OneSimCamera(int timeout_ms) {
+  OneCamera cell;
+  cell.scene = std::make_shared<sim::Scene>();
+  cell.scene->bounds.min = Eigen::Vector3d(0, 0, 0);
+  cell.scene->bounds.max = Eigen::Vector3d(2, 2, 2);
+  sim::SceneCamera camera;
+  camera.model = scene::LookAtCamera({-0.5, -0.5, 2.2}, {1, 1, 0.8}, 160, 120, 130);
+  camera.model.name = "cam0";
+  cell.scene->cameras.push_back(camera);
+  cell.options.bounds = cell.scene->bounds;
+  cell.options.depth = 5;
+  cell.options.publish_depth = 5;
+  cell.timeout_ms = timeout_ms;
+  return cell;
+}
+
 // The real pipeline's stages: one simulated camera and the fusion thread beat
 // the heartbeats; a consumer that blocks freezes the fusion stage (as a hung
 // publisher would) and the pings stop until it returns.
 TEST(ServiceWatchdogTest, AFrozenPipelineStageStopsThePings) {
   FakeSystemd systemd(microseconds(200000));
-  auto scene = std::make_shared<sim::Scene>();
-  scene->bounds.min = Eigen::Vector3d(0, 0, 0);
-  scene->bounds.max = Eigen::Vector3d(2, 2, 2);
-  sim::SceneCamera camera;
-  camera.model = scene::LookAtCamera({-0.5, -0.5, 2.2}, {1, 1, 0.8}, 160, 120, 130);
-  camera.model.name = "cam0";
-  scene->cameras.push_back(camera);
-  pipeline::PipelineOptions options;
-  options.bounds = scene->bounds;
-  options.depth = 5;
-  options.publish_depth = 5;
-  std::vector<pipeline::PipelineCamera> cameras;
-  cameras.push_back({camera.model,
-                     std::make_unique<capture::SimSource>(scene, 0, 30.0, capture::SimClock::Now()),
-                     200});
+  const OneCamera cell = OneSimCamera(200);
+  const pipeline::PipelineOptions& options = cell.options;
+  std::vector<pipeline::PipelineCamera> cameras = cell.Cameras();
   std::atomic<bool> freeze{false};
   std::atomic<bool> frozen{false};  // The fusion thread is inside the freeze.
   Heartbeats beats;
@@ -504,24 +523,10 @@ TEST(ServiceWatchdogTest, AFrozenPipelineStageStopsThePings) {
 // checks under WatchdogSec=2, and jitter left checks without a beat (systemd
 // would restart a healthy daemon).
 TEST(ServiceWatchdogTest, FusionAtOneHertzBeatsWhileItWaits) {
-  auto scene = std::make_shared<sim::Scene>();
-  scene->bounds.min = Eigen::Vector3d(0, 0, 0);
-  scene->bounds.max = Eigen::Vector3d(2, 2, 2);
-  sim::SceneCamera camera;
-  camera.model = scene::LookAtCamera({-0.5, -0.5, 2.2}, {1, 1, 0.8}, 160, 120, 130);
-  camera.model.name = "cam0";
-  scene->cameras.push_back(camera);
-  pipeline::PipelineOptions options;
-  options.bounds = scene->bounds;
-  options.depth = 5;
-  options.publish_depth = 5;
-  options.rate_hz = 1.0;
-  std::vector<pipeline::PipelineCamera> cameras;
-  cameras.push_back({camera.model,
-                     std::make_unique<capture::SimSource>(scene, 0, 30.0, capture::SimClock::Now()),
-                     2000});
+  OneCamera cell = OneSimCamera(2000);
+  cell.options.rate_hz = 1.0;
   Heartbeats beats;
-  pipeline::Pipeline pipeline(options, std::move(cameras), {}, nullptr, &beats);
+  pipeline::Pipeline pipeline(cell.options, cell.Cameras(), {}, nullptr, &beats);
   ASSERT_EQ(beats.name(2), "fusion");
   pipeline.Start();
   // Ten windows of 250 ms: a beat per cycle would reach at most three of them.

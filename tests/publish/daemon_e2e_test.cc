@@ -395,6 +395,18 @@ TEST_F(DaemonE2E, NotifiesReadyWatchdogAndStoppingAsAService) {
 // while it starts up (a signal then used to kill it half-built) and at a
 // cycle rate of 1 Hz (its fusion thread used to sleep out the period, and
 // then ran one more cycle with its cameras stopped).
+// Whether process `pid` catches SIGTERM (/proc: SigCgt). Before main()
+// nothing can catch it.
+bool CatchesSigterm(pid_t pid) {
+  std::ifstream status("/proc/" + std::to_string(pid) + "/status");
+  for (std::string line; std::getline(status, line);) {
+    if (line.rfind("SigCgt:", 0) == 0) {
+      return ((std::stoull(line.substr(7), nullptr, 16) >> (SIGTERM - 1)) & 1u) != 0;
+    }
+  }
+  return false;
+}
+
 TEST_F(DaemonE2E, SigtermDuringStartUpAndAtALowRateEndsCleanlyWithinASecond) {
   {
     fs::create_directories(dir_ / "early");
@@ -403,15 +415,7 @@ TEST_F(DaemonE2E, SigtermDuringStartUpAndAtALowRateEndsCleanlyWithinASecond) {
     // As soon as it catches SIGTERM (/proc: SigCgt), well before its start-up
     // (config, obstacle maps, tracking voxels, cameras) is done. Before main()
     // nothing can catch it, so this waits for that.
-    auto catches_sigterm = [&] {
-      std::ifstream status("/proc/" + std::to_string(daemon.pid()) + "/status");
-      for (std::string line; std::getline(status, line);) {
-        if (line.rfind("SigCgt:", 0) == 0) {
-          return ((std::stoull(line.substr(7), nullptr, 16) >> (SIGTERM - 1)) & 1u) != 0;
-        }
-      }
-      return false;
-    };
+    auto catches_sigterm = [&] { return CatchesSigterm(daemon.pid()); };
     for (const auto end = Clock::now() + 10s; Clock::now() < end && !catches_sigterm();) {
       std::this_thread::sleep_for(1ms);
     }
@@ -459,15 +463,7 @@ TEST_F(DaemonE2E, SigtermDuringStartUpAndAtALowRateEndsCleanlyWithinASecond) {
   std::ofstream(fine) << text;
   fs::create_directories(dir_ / "fine");
   testing::HullguarddRun daemon(g_daemon, fine, 60.0, dir_ / "fine");
-  auto catches_sigterm = [&] {
-    std::ifstream status("/proc/" + std::to_string(daemon.pid()) + "/status");
-    for (std::string line; std::getline(status, line);) {
-      if (line.rfind("SigCgt:", 0) == 0) {
-        return ((std::stoull(line.substr(7), nullptr, 16) >> (SIGTERM - 1)) & 1u) != 0;
-      }
-    }
-    return false;
-  };
+  auto catches_sigterm = [&] { return CatchesSigterm(daemon.pid()); };
   for (const auto end = Clock::now() + 10s; Clock::now() < end && !catches_sigterm();) {
     std::this_thread::sleep_for(1ms);
   }
