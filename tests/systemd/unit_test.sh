@@ -27,8 +27,15 @@ trap 'rm -rf "$tmp"' EXIT INT TERM
 # The shipped unit must name the installed paths (the rewrite below depends on it).
 grep -q '^ExecStart=/usr/bin/hullguardd --config /etc/hullguard/hullguard.yaml$' "$unit" ||
   { echo "FAIL: unexpected ExecStart= in $unit"; exit 1; }
-grep -q '^ExecStartPre=/usr/bin/hullguardd --check-config /etc/hullguard/hullguard.yaml$' "$unit" ||
-  { echo "FAIL: unexpected ExecStartPre= in $unit"; exit 1; }
+# No ExecStartPre=: RestartPreventExitStatus=2 only stops restarts for the
+# main process's exit code, so a config check there would be retried until the
+# start limit; the daemon checks its config itself and exits 2.
+if grep -q '^ExecStartPre=' "$unit"; then
+  echo "FAIL: ExecStartPre= in $unit: a failure there is restarted (RestartPreventExitStatus= is for the main process)"
+  exit 1
+fi
+grep -q '^RestartPreventExitStatus=2$' "$unit" ||
+  { echo "FAIL: no RestartPreventExitStatus=2 in $unit"; exit 1; }
 
 sed "s|/usr/bin/hullguardd|$daemon|g" "$unit" >"$tmp/hullguardd.service"
 if ! out=$(systemd-analyze verify --man=no "$tmp/hullguardd.service" 2>&1); then

@@ -21,14 +21,27 @@
 #ifndef HG_DEFAULT_SCENE
 #define HG_DEFAULT_SCENE "config/scenes/demo_cell.yaml"
 #endif
+#ifndef HG_INSTALLED_SCENE
+#define HG_INSTALLED_SCENE "/usr/share/hullguard/scenes/demo_cell.yaml"
+#endif
 
 namespace hg::tools {
 namespace {
 
 namespace fs = std::filesystem;
 
+/// The demo cell of the source tree the tool was built from, or else the
+/// installed one.
+std::string DefaultScene() {
+  std::error_code ec;
+  if (fs::is_regular_file(HG_DEFAULT_SCENE, ec) || !fs::is_regular_file(HG_INSTALLED_SCENE, ec)) {
+    return HG_DEFAULT_SCENE;
+  }
+  return HG_INSTALLED_SCENE;
+}
+
 struct DemoFlags {
-  std::string scene = HG_DEFAULT_SCENE;
+  std::string scene = DefaultScene();
   std::string out = "hullguard-demo";
   int frames = 90;
   int every = 15;
