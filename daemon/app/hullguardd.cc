@@ -1,9 +1,15 @@
 /// @file
 /// hullguardd: flags -> load config -> build pipeline -> run.
 
+#include <unistd.h>
+
+#include <cctype>
+#include <cstdlib>
+#include <filesystem>
 #include <iostream>
 #include <new>
 #include <string>
+#include <string_view>
 
 #include <yaml-cpp/yaml.h>
 #include <CLI/CLI.hpp>
@@ -19,6 +25,34 @@ namespace {
 /// Exit codes: 0 ok, 1 cannot run, 2 bad configuration or command line.
 constexpr int kExitCannotRun = 1;
 constexpr int kExitBadConfig = 2;
+
+/// "" when CYCLONEDDS_URI is unset or every file:// it names is a readable
+/// file; else what is wrong. (Inline XML and other URIs are Cyclone's to
+/// read.)
+std::string CycloneddsUriProblem() {
+  const char* uri = std::getenv("CYCLONEDDS_URI");
+  if (uri == nullptr) return "";
+  std::string_view rest(uri);
+  while (!rest.empty()) {
+    const std::size_t comma = rest.find(',');
+    std::string_view item = rest.substr(0, comma);
+    rest = comma == std::string_view::npos ? std::string_view() : rest.substr(comma + 1);
+    while (!item.empty() && std::isspace(static_cast<unsigned char>(item.front()))) {
+      item.remove_prefix(1);
+    }
+    while (!item.empty() && std::isspace(static_cast<unsigned char>(item.back()))) {
+      item.remove_suffix(1);
+    }
+    constexpr std::string_view kFile = "file://";
+    if (item.substr(0, kFile.size()) != kFile) continue;
+    const std::string path(item.substr(kFile.size()));
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec) || access(path.c_str(), R_OK) != 0) {
+      return "CYCLONEDDS_URI names " + std::string(item) + ", which is not a readable file";
+    }
+  }
+  return "";
+}
 
 }  // namespace
 
@@ -83,6 +117,16 @@ int main(int argc, char** argv) {
     // (a yaml-cpp conversion) is still about this file.
     std::cerr << path << ": " << e.what() << '\n';
     return kExitBadConfig;
+  }
+  if (config.dds.enabled) {
+    // A Cyclone DDS config file that is not there makes the daemon's DDS
+    // participant fail at start: exit 1, which systemd restarts until its
+    // start limit. It is the deployment's config, so it is named here, as a
+    // bad config, before anything is opened.
+    if (const std::string problem = CycloneddsUriProblem(); !problem.empty()) {
+      std::cerr << "hullguardd: " << problem << '\n';
+      return kExitBadConfig;
+    }
   }
   for (const std::string& notice : config.notices) std::cerr << notice << '\n';
   try {
