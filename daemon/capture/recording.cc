@@ -1,12 +1,14 @@
 #include "capture/recording.h"
 
 #include <sys/stat.h>
+#include <unistd.h>
 #include <yaml-cpp/yaml.h>
 
 #include <cerrno>
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -490,6 +492,8 @@ RecordingWriter::RecordingWriter(std::string directory, std::vector<geometry::Ca
         std::fflush(s.index) != 0) {
       throw ConfigError(index + ": cannot write: " + std::strerror(errno));
     }
+    // From here on lines go to the descriptor whole (AppendIndexLine).
+    s.index_bytes = static_cast<std::int64_t>(std::strlen(kIndexHeader)) + 1;
   }
   std::vector<geometry::CameraModel> models;
   for (const CameraState& s : cameras_) models.push_back(s.model);
@@ -598,13 +602,42 @@ bool RecordingWriter::Write(int camera, std::uint64_t number, const Frame& frame
   if (device_stamp_ns) {
     std::snprintf(device, sizeof(device), "%lld", static_cast<long long>(*device_stamp_ns));
   }
-  if (std::fprintf(c.index, "%llu,%lld,%s,%llu,%s\n", static_cast<unsigned long long>(number),
-                   static_cast<long long>(frame.stamp_ns), device,
-                   static_cast<unsigned long long>(frame.index), name) < 0 ||
-      std::fflush(c.index) != 0) {
-    return Fail(&c, IndexPath(directory_, c.model.name) + ": " + std::strerror(errno));
+  char line[160];
+  const int length =
+      std::snprintf(line, sizeof(line), "%llu,%lld,%s,%llu,%s\n",
+                    static_cast<unsigned long long>(number), static_cast<long long>(frame.stamp_ns),
+                    device, static_cast<unsigned long long>(frame.index), name);
+  if (length <= 0 || static_cast<std::size_t>(length) >= sizeof(line) ||
+      !AppendIndexLine(&c, line, static_cast<std::size_t>(length))) {
+    const std::string why = std::strerror(errno);
+    // Without its index line the frame is not in the recording.
+    std::remove(c.path.c_str());
+    return Fail(&c, IndexPath(directory_, c.model.name) + ": " + why);
   }
   ++c.stats.kept;
+  return true;
+}
+
+bool RecordingWriter::AppendIndexLine(CameraState* c, const char* line, std::size_t length) {
+  // Straight to the descriptor, whole or not at all: a disk that fills in the
+  // middle of a line left half of it, and the next line glued on, and the
+  // reader refused the whole recording. A failed write is cut back to the
+  // last whole line.
+  const int fd = fileno(c->index);
+  std::size_t done = 0;
+  while (done < length) {
+    const ssize_t n = ::write(fd, line + done, length - done);
+    if (n > 0) {
+      done += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    const int error = n < 0 ? errno : ENOSPC;
+    if (::ftruncate(fd, c->index_bytes) == 0) ::lseek(fd, c->index_bytes, SEEK_SET);
+    errno = error;
+    return false;
+  }
+  c->index_bytes += static_cast<std::int64_t>(length);
   return true;
 }
 

@@ -164,6 +164,7 @@ class RecordingWriter {
   struct CameraState {
     geometry::CameraModel model;
     std::FILE* index = nullptr;
+    std::int64_t index_bytes = 0;  // Length of the index's whole lines.
     // Of the first frame written; guarded by manifest_mutex_.
     FrameKind kind = FrameKind::kMask;
     bool kind_known = false;
@@ -177,6 +178,8 @@ class RecordingWriter {
   // Caller holds manifest_mutex_.
   bool WriteManifest(bool complete, std::string* error) const;
   bool Fail(CameraState* c, const std::string& what);
+  // Appends one index line, whole or not at all (errno set on failure).
+  static bool AppendIndexLine(CameraState* c, const char* line, std::size_t length);
 
   std::string directory_;
   std::string writer_;

@@ -6,11 +6,14 @@
 // before.
 #include "capture/recording.h"
 
+#include <sys/resource.h>
+
 #include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -194,6 +197,39 @@ TEST_F(RecordingTest, WriteErrorIsCountedAndTheRecordingGoesOn) {
   EXPECT_EQ(rec.lost, 3U);
   // A frame of another size than the camera's first is refused.
   EXPECT_FALSE(writer.Write(0, 5, RandomFrame(FrameKind::kMono, 9, 6, 1)));
+}
+
+// The disk fills in the middle of an index line (here: a file size limit,
+// RLIMIT_FSIZE, which cuts the write where it is reached, as a full disk
+// does), then has room again: the line is cut back, the frame counted lost
+// and its image removed, and the lines after it follow whole lines. Half a
+// line with the next one glued on made the whole recording unreadable.
+TEST_F(RecordingTest, AnIndexLineCutByAFullDiskIsUndone) {
+  RecordingWriter writer(dir_.string(), {Camera("cam", 4, 3)}, "test", "", ImageFormat::kPnm);
+  const fs::path index = dir_ / "frames" / "cam" / "index.csv";
+  Frame f = RandomFrame(FrameKind::kMono, 4, 3, 1);
+  f.stamp_ns = 1'795'000'000'000'000'000;
+  ASSERT_TRUE(writer.Write(0, 0, f));
+  ASSERT_TRUE(writer.Write(0, 1, f));
+  const auto size = static_cast<rlim_t>(fs::file_size(index));
+  rlimit before{};
+  ASSERT_EQ(getrlimit(RLIMIT_FSIZE, &before), 0);
+  const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+  rlimit limit = before;
+  limit.rlim_cur = size + 20;  // Room for 20 bytes of the next line, not all of it.
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &limit), 0);
+  const bool written = writer.Write(0, 2, f);
+  ASSERT_EQ(setrlimit(RLIMIT_FSIZE, &before), 0);
+  std::signal(SIGXFSZ, old_handler);
+  EXPECT_FALSE(written);
+  EXPECT_EQ(fs::file_size(index), size);
+  EXPECT_FALSE(fs::exists(dir_ / "frames" / "cam" / "000002.pgm"));
+  EXPECT_EQ(writer.stats(0).write_errors, 1U);
+  ASSERT_TRUE(writer.Write(0, 3, f));
+  ASSERT_TRUE(writer.Finish());
+  const RecordingCamera rec = ReadRecordingCamera(dir_.string(), "cam");
+  ASSERT_EQ(rec.frames.size(), 3U);
+  EXPECT_EQ(rec.frames[2].file, "frames/cam/000003.pgm");
 }
 
 TEST_F(RecordingTest, RefusesAFolderThatHoldsARecording) {
