@@ -135,6 +135,7 @@ void BlackBox::Push(int camera, const capture::Frame& frame) {
   std::atomic_thread_fence(std::memory_order_release);
   s.number.store(number, std::memory_order_relaxed);
   s.stamp_ns.store(frame.stamp_ns, std::memory_order_relaxed);
+  s.device_stamp_ns.store(frame.device_stamp_ns, std::memory_order_relaxed);
   s.index.store(frame.index, std::memory_order_relaxed);
   s.kind.store(static_cast<std::uint32_t>(frame.kind), std::memory_order_relaxed);
   s.width.store(width, std::memory_order_relaxed);
@@ -164,6 +165,7 @@ bool BlackBox::ReadSlot(const Ring& ring, std::uint64_t number, Copied* out) con
   const int width = s.width.load(std::memory_order_relaxed);
   const int height = s.height.load(std::memory_order_relaxed);
   out->frame.stamp_ns = s.stamp_ns.load(std::memory_order_relaxed);
+  out->frame.device_stamp_ns = s.device_stamp_ns.load(std::memory_order_relaxed);
   out->frame.index = s.index.load(std::memory_order_relaxed);
   // The fields may mix two frames if the slot changed meanwhile; they are
   // only trusted once the sequence is found unchanged below, but must not
@@ -214,6 +216,13 @@ std::vector<BlackBox::Copied> BlackBox::CopyRings(std::vector<std::uint64_t>* to
       }
     }
   }
+  // Written in capture order across the cameras, not camera after camera: a
+  // dump cut short (systemd's stop timeout) then holds every camera over the
+  // span it got to, which replays, instead of whole cameras and none of the
+  // others, which does not.
+  std::stable_sort(copied.begin(), copied.end(), [](const Copied& a, const Copied& b) {
+    return a.frame.stamp_ns < b.frame.stamp_ns;
+  });
   return copied;
 }
 

@@ -189,6 +189,7 @@ class BlackBox {
     std::atomic<std::uint64_t> sequence{0};  // Odd while being written.
     std::atomic<std::uint64_t> number{0};    // Push count of the frame held.
     std::atomic<std::int64_t> stamp_ns{0};
+    std::atomic<std::int64_t> device_stamp_ns{-1};  // The camera's own clock; -1: none.
     std::atomic<std::uint64_t> index{0};
     std::atomic<std::uint32_t> kind{0};
     std::atomic<std::int32_t> width{0};

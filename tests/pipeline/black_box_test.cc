@@ -140,6 +140,8 @@ TEST_F(BlackBoxTest, DumpReadsBackExactly) {
   for (int c = 0; c < 3; ++c) {
     for (std::uint64_t n = 0; n < pushed[c]; ++n) {
       MakeFrame(kinds[c], cameras[c].model.width, cameras[c].model.height, n, c, &frame);
+      // The first camera has a clock of its own (GigE Vision), the others none.
+      frame.device_stamp_ns = c == 0 ? 5'000'000 + static_cast<std::int64_t>(n) : -1;
       box.Push(c, frame);
     }
   }
@@ -169,6 +171,10 @@ TEST_F(BlackBoxTest, DumpReadsBackExactly) {
       MakeFrame(kinds[c], cameras[c].model.width, cameras[c].model.height, n, c, &expected);
       EXPECT_EQ(rec.frames[i].stamp_ns, expected.stamp_ns);
       EXPECT_EQ(rec.frames[i].source_index, expected.index);
+      // The camera's own stamp is kept (it was dropped: an empty column).
+      EXPECT_EQ(rec.frames[i].device_stamp_ns,
+                c == 0 ? std::optional<std::int64_t>(5'000'000 + static_cast<std::int64_t>(n))
+                       : std::nullopt);
       ASSERT_TRUE(source.ReadFrame(static_cast<int>(i), &got));
       EXPECT_EQ(got.kind, kinds[c]);
       if (kinds[c] == FrameKind::kRgb) {
