@@ -358,7 +358,8 @@ int RunPipeline(const Config& config, double duration_s) {
                                                  return h.state == pipeline::CameraState::kStarting;
                                                });
         if (cameras_open || now - start >= kReadyWait) {
-          const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0);
+          const std::string line = HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0,
+                                              failed_writes_last_second);
           if (!cameras_open) log::Warn("ready without every camera: {}", line);
           notifier.Ready();
           watchdog.SetStatus(line);
@@ -400,8 +401,10 @@ int RunPipeline(const Config& config, double duration_s) {
   if (publish_stage) publish_stage->Stop();
   if (tracking) tracking->Stop();
   if (const auto s = pipeline.Latest()) {
-    LogHealth(*s, HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0),
-              other_publishers > 0);
+    LogHealth(
+        *s,
+        HealthLine(*s, StatsOf(tracking.get()), other_publishers > 0, failed_writes_last_second),
+        other_publishers > 0 || failed_writes_last_second > 0);
   }
   log::Info("stopped");
   return 0;

@@ -1,5 +1,6 @@
 #include "capture/recording.h"
 
+#include <fcntl.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <yaml-cpp/yaml.h>
@@ -487,13 +488,11 @@ RecordingWriter::RecordingWriter(std::string directory, std::vector<geometry::Ca
     fs::create_directories(folder, ec);
     if (ec) throw ConfigError(folder.string() + ": cannot create: " + ec.message());
     const std::string index = (folder / "index.csv").string();
-    s.index = std::fopen(index.c_str(), "w");
-    if (s.index == nullptr || std::fprintf(s.index, "%s\n", kIndexHeader) < 0 ||
-        std::fflush(s.index) != 0) {
+    s.index = ::open(index.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    const std::string header = std::string(kIndexHeader) + "\n";
+    if (s.index < 0 || !AppendIndexLine(&s, header.data(), header.size())) {
       throw ConfigError(index + ": cannot write: " + std::strerror(errno));
     }
-    // From here on lines go to the descriptor whole (AppendIndexLine).
-    s.index_bytes = static_cast<std::int64_t>(std::strlen(kIndexHeader)) + 1;
   }
   std::vector<geometry::CameraModel> models;
   for (const CameraState& s : cameras_) models.push_back(s.model);
@@ -506,7 +505,7 @@ RecordingWriter::RecordingWriter(std::string directory, std::vector<geometry::Ca
 RecordingWriter::~RecordingWriter() {
   Finish(nullptr);
   for (CameraState& c : cameras_) {
-    if (c.index != nullptr) std::fclose(c.index);
+    if (c.index >= 0) ::close(c.index);
   }
 }
 
@@ -519,7 +518,7 @@ bool RecordingWriter::Fail(CameraState* c, const std::string& what) {
 bool RecordingWriter::Write(int camera, std::uint64_t number, const Frame& frame,
                             std::optional<std::int64_t> device_stamp_ns) {
   CameraState& c = cameras_[static_cast<std::size_t>(camera)];
-  if (finished_ || c.index == nullptr) return Fail(&c, "the recording is closed");
+  if (finished_ || c.index < 0) return Fail(&c, "the recording is closed");
   const bool rgb = frame.kind == FrameKind::kRgb;
   const int width = rgb ? frame.rgb.width : frame.grey.width;
   const int height = rgb ? frame.rgb.height : frame.grey.height;
@@ -623,7 +622,7 @@ bool RecordingWriter::AppendIndexLine(CameraState* c, const char* line, std::siz
   // middle of a line left half of it, and the next line glued on, and the
   // reader refused the whole recording. A failed write is cut back to the
   // last whole line.
-  const int fd = fileno(c->index);
+  const int fd = c->index;
   std::size_t done = 0;
   while (done < length) {
     const ssize_t n = ::write(fd, line + done, length - done);
@@ -711,11 +710,11 @@ bool RecordingWriter::Finish(std::string* error) {
   bool ok = true;
   std::string why;
   for (CameraState& c : cameras_) {
-    if (c.index != nullptr && std::fclose(c.index) != 0) {
+    if (c.index >= 0 && ::close(c.index) != 0) {
       ok = false;
       why = IndexPath(directory_, c.model.name) + ": " + std::strerror(errno);
     }
-    c.index = nullptr;
+    c.index = -1;
   }
   const std::lock_guard<std::mutex> lock(manifest_mutex_);
   if (!WriteManifest(true, &why)) ok = false;

@@ -163,8 +163,8 @@ class RecordingWriter {
  private:
   struct CameraState {
     geometry::CameraModel model;
-    std::FILE* index = nullptr;
-    std::int64_t index_bytes = 0;  // Length of the index's whole lines.
+    int index = -1;                // File descriptor of frames/<camera>/index.csv.
+    std::int64_t index_bytes = 0;  // Length of its whole lines.
     // Of the first frame written; guarded by manifest_mutex_.
     FrameKind kind = FrameKind::kMask;
     bool kind_known = false;
