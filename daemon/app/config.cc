@@ -1311,9 +1311,9 @@ void CheckRecordingForConfig(const Config& config, const std::string& recording)
       }
       problems.push_back(which + problem);
     }
-    if (capture::ReadRecordingCamera(recording, name).frames.empty()) {
-      problems.push_back(which + "no frames in the recording");
-    }
+    // A camera without frames (one the black box dumped because it was lost)
+    // replays as a camera that never delivers; synth recordings always hold
+    // frames.
   }
   if (problems.empty()) return;
   std::string message = cameras_file + ": the recording does not match the config's cameras: ";
@@ -1323,9 +1323,56 @@ void CheckRecordingForConfig(const Config& config, const std::string& recording)
 
 namespace {
 
+/// The frames part of CheckRecording: the first frame reads and has the
+/// camera block's size, and a preload fits the machine's memory. False when
+/// an error was recorded or the camera block has errors of its own (`model`
+/// null).
+bool CheckRecordedFrames(Reader& r, const Item& directory, const Entries& source,
+                         const ReplaySourceConfig& replay, const capture::RecordingCamera& rec,
+                         const geometry::CameraModel* model) {
+  capture::Frame frame;
+  std::vector<unsigned char> bytes;
+  std::string path;
+  if (!capture::LoadRecordedFrame(rec, 0, &frame, &bytes, &path)) {
+    r.Error(directory.line, directory.path,
+            "first frame of camera '" + replay.camera + "' cannot be read: " + path);
+    return false;
+  }
+  const bool rgb = frame.kind == capture::FrameKind::kRgb;
+  const int w = rgb ? frame.rgb.width : frame.grey.width;
+  const int h = rgb ? frame.rgb.height : frame.grey.height;
+  if (model == nullptr) return false;
+  if (w != model->width || h != model->height) {
+    r.Error(directory.line, directory.path,
+            "camera '" + replay.camera + "' was recorded at " + std::to_string(w) + "x" +
+                std::to_string(h) + ", the camera block is " + std::to_string(model->width) + "x" +
+                std::to_string(model->height) + " (" + path + ")");
+    return false;
+  }
+  if (replay.preload) {
+    // Every frame decoded in memory: more than half the machine's memory
+    // would end the daemon at start-up (or the machine's other work).
+    const double mib =
+        static_cast<double>(rec.frames.size()) * w * h * (rgb ? 3 : 1) / (1024.0 * 1024.0);
+    const double memory_mib = static_cast<double>(sysconf(_SC_PHYS_PAGES)) *
+                              static_cast<double>(sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024.0);
+    if (memory_mib > 0.0 && mib > 0.5 * memory_mib) {
+      const Item& preload = source.at("preload");  // Set, so given.
+      r.Error(preload.line, preload.path,
+              std::to_string(rec.frames.size()) + " frames of camera '" + replay.camera +
+                  "' need " + FormatNumber(std::round(mib)) +
+                  " MiB preloaded, more than half of this machine's memory (" +
+                  FormatNumber(std::round(memory_mib)) +
+                  " MiB); play them from disk (preload: false)");
+      return false;
+    }
+  }
+  return true;
+}
+
 /// A replay source's recording, opened as the replay will: its manifest (and
-/// frames index) must read, hold the camera and at least one frame, and the
-/// first frame must decode to the camera block's size, and the recording's
+/// frames index) must read and hold the camera, the first frame, if any,
+/// must decode to the camera block's size, and the recording's
 /// calibration of the camera (its cameras.yaml) must be the camera block's
 /// (CheckSameCamera), and a preload must fit the machine's memory. Errors
 /// are recorded at the source's `directory` key (`source`: its entries), with
@@ -1338,10 +1385,14 @@ void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Entrie
   try {
     const capture::RecordingCamera rec =
         capture::ReadRecordingCamera(replay.directory, replay.camera);
-    if (rec.frames.empty()) {
-      r.Error(
-          directory.line, directory.path,
-          "recording '" + replay.directory + "' has no frames of camera '" + replay.camera + "'");
+    // A camera that delivered nothing while it was recorded (a black box
+    // dump taken because it was lost) replays as one that never delivers:
+    // it sees nothing, and the stream is degraded, as it was then.
+    const bool empty = rec.frames.empty();
+    if (empty && replay.loop) {
+      r.Error(directory.line, directory.path,
+              "recording '" + replay.directory + "' has no frames of camera '" + replay.camera +
+                  "' to loop");
       return;
     }
     if (replay.loop) {
@@ -1363,43 +1414,8 @@ void CheckRecording(Reader& r, const Item& entry, const Entries& e, const Entrie
         return;
       }
     }
-    capture::Frame frame;
-    std::vector<unsigned char> bytes;
-    std::string path;
-    if (!capture::LoadRecordedFrame(rec, 0, &frame, &bytes, &path)) {
-      r.Error(directory.line, directory.path,
-              "first frame of camera '" + replay.camera + "' cannot be read: " + path);
-      return;
-    }
-    const bool rgb = frame.kind == capture::FrameKind::kRgb;
-    const int w = rgb ? frame.rgb.width : frame.grey.width;
-    const int h = rgb ? frame.rgb.height : frame.grey.height;
+    if (!empty && !CheckRecordedFrames(r, directory, source, replay, rec, model)) return;
     if (model == nullptr) return;
-    if (w != model->width || h != model->height) {
-      r.Error(directory.line, directory.path,
-              "camera '" + replay.camera + "' was recorded at " + std::to_string(w) + "x" +
-                  std::to_string(h) + ", the camera block is " + std::to_string(model->width) +
-                  "x" + std::to_string(model->height) + " (" + path + ")");
-      return;
-    }
-    if (replay.preload) {
-      // Every frame decoded in memory: more than half the machine's memory
-      // would end the daemon at start-up (or the machine's other work).
-      const double mib =
-          static_cast<double>(rec.frames.size()) * w * h * (rgb ? 3 : 1) / (1024.0 * 1024.0);
-      const double memory_mib = static_cast<double>(sysconf(_SC_PHYS_PAGES)) *
-                                static_cast<double>(sysconf(_SC_PAGE_SIZE)) / (1024.0 * 1024.0);
-      if (memory_mib > 0.0 && mib > 0.5 * memory_mib) {
-        const Item& preload = source.at("preload");  // Set, so given.
-        r.Error(preload.line, preload.path,
-                std::to_string(rec.frames.size()) + " frames of camera '" + replay.camera +
-                    "' need " + FormatNumber(std::round(mib)) +
-                    " MiB preloaded, more than half of this machine's memory (" +
-                    FormatNumber(std::round(memory_mib)) +
-                    " MiB); play them from disk (preload: false)");
-        return;
-      }
-    }
     const std::string cameras_file =
         (std::filesystem::path(replay.directory) / "cameras.yaml").string();
     if (!std::filesystem::is_regular_file(cameras_file)) {

@@ -81,6 +81,9 @@ class ReplaySource : public CameraSource {
   [[nodiscard]] std::uint64_t corrupt_frames() const override {
     return corrupt_.load(std::memory_order_relaxed);
   }
+  /// A camera the recording holds no frame of (lost before the recording
+  /// began) replays as one that never answers: `failed`.
+  [[nodiscard]] bool failing() const override { return recording_.frames.empty(); }
 
   /// Bytes of the frames held in memory (ReplayOptions::preload), 0 without.
   [[nodiscard]] std::size_t preloaded_bytes() const { return preloaded_bytes_; }

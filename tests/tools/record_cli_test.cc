@@ -149,6 +149,53 @@ TEST_F(RecordCliTest, RecordsSimCamerasAndReplaysDeterministically) {
   EXPECT_NE(again.err.find("already holds a recording"), std::string::npos) << again.err;
 }
 
+// A camera that delivered nothing while it was recorded (lost before the
+// recording, or the black box's dump, began) is in the recording without
+// frames: the recording still replays, lock-step and in the daemon, with that
+// camera seeing nothing (`failed`, every cycle degraded). Looping it is refused.
+TEST_F(RecordCliTest, CameraWithoutFramesReplaysAsOneThatNeverDelivers) {
+  std::string text = Config("{type: sim, scene: " + kScene + "}");
+  const std::string cam2 = "source: {type: sim, scene: " + kScene + "}}\n";
+  const std::size_t at = text.rfind(cam2);
+  ASSERT_NE(at, std::string::npos);
+  text.replace(at, cam2.size(), "source: {type: sim, scene: " + kScene + ", stop_after_s: 0}}\n");
+  std::ofstream(Path("dead_cam2.yaml")) << text;
+  const auto rec = Hullguard("record --config " + Path("dead_cam2.yaml") + " --out " + Path("rec") +
+                             " --seconds 1");
+  // `record` says so (exit 1), and keeps what the others delivered.
+  EXPECT_EQ(rec.code, 1) << rec.out << rec.err;
+  EXPECT_NE(rec.err.find("a camera delivered no frame"), std::string::npos) << rec.err;
+  ASSERT_TRUE(capture::ReadRecordingCamera(Path("rec"), "cam2").frames.empty());
+  ASSERT_FALSE(capture::ReadRecordingCamera(Path("rec"), "cam0").frames.empty());
+
+  std::ofstream(Path("replay.yaml")) << Config("{type: replay, directory: " + Path("rec") + "}");
+  const auto replay =
+      Hullguard("replay --config " + Path("replay.yaml") + " --recording " + Path("rec"));
+  ASSERT_EQ(replay.code, 0) << replay.out << replay.err;
+  EXPECT_NE(replay.out.find("camera 'cam2' has no frames in the recording"), std::string::npos)
+      << replay.out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(replay.out, m,
+                                std::regex("replay: ([0-9]+) cycles .* ([0-9]+) cycles degraded")))
+      << replay.out;
+  EXPECT_GE(std::stoi(m[1]), 25) << replay.out;
+  EXPECT_EQ(m[1], m[2]) << replay.out;
+
+  const auto daemon = testing::RunToolInNetns(
+      HG_HULLGUARDD_BIN, "--config " + Path("replay.yaml") + " --duration 1.5");
+  if (daemon.code == testing::kNoNetns) GTEST_SKIP() << "no network namespace: " << daemon.err;
+  EXPECT_EQ(daemon.code, 0) << daemon.err;
+  EXPECT_TRUE(std::regex_search(
+      daemon.err, std::regex("cycle [0-9]+ DEGRADED .* cam0 ok .* cam2 failed 0 fps")))
+      << daemon.err;
+
+  std::ofstream(Path("loop.yaml"))
+      << Config("{type: replay, directory: " + Path("rec") + ", loop: true}");
+  const auto loop = testing::RunTool(HG_HULLGUARDD_BIN, "--check-config " + Path("loop.yaml"));
+  EXPECT_EQ(loop.code, 2) << loop.out << loop.err;
+  EXPECT_NE(loop.err.find("has no frames of camera 'cam2' to loop"), std::string::npos) << loop.err;
+}
+
 // A recording with a silence of days in it (every camera's next frame two
 // days on) replays at once: the cycles of the silence, every camera stale,
 // are counted (as degraded), not run one by one for hours.

@@ -297,6 +297,14 @@ int RunReplay(const ReplayFlags& f) {
     for (const capture::RecordedFrame& rf : r.frames) end_ns = std::max(end_ns, rf.time_ns);
     // Timeouts are measured between recorded stamps here, as in the daemon.
     cameras.push_back({c.model, nullptr, c.timeout_ms});
+    if (r.frames.empty()) {
+      // A camera lost before the recording (or the black box's dump)
+      // began: it sees nothing in every cycle, as it did then.
+      std::printf(
+          "replay: camera '%s' has no frames in the recording: it replays as a camera "
+          "that never delivers (sees nothing, every cycle degraded)\n",
+          c.model.name.c_str());
+    }
   }
   // The ground truth, read before anything runs (a bad file is bad input).
   std::optional<TruthCoverage> truth;
