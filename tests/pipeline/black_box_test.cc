@@ -327,9 +327,24 @@ TEST_F(BlackBoxTest, DumpAskedForDuringAnotherIsCopiedAtOnce) {
   o.on_dump = [&](const BlackBoxDump& d) {
     std::unique_lock<std::mutex> lock(mutex);
     dumps.push_back(d);
+    cv.notify_all();
     cv.wait(lock, [&] { return release; });  // The first dump's writing lasts.
   };
   BlackBox box(o, {{Camera("a", 16, 16), FrameKind::kMask, 30.0}});
+  // Lets the writer go on however the test ends (a failed assertion would
+  // otherwise leave the box's destructor waiting for the first dump).
+  struct Release {
+    std::mutex& mutex;
+    std::condition_variable& cv;
+    bool& release;
+    ~Release() {
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        release = true;
+      }
+      cv.notify_all();
+    }
+  } const release_at_end{mutex, cv, release};
   Frame frame;
   auto push = [&](std::uint64_t from, std::uint64_t to) {
     for (std::uint64_t n = from; n < to; ++n) {
@@ -338,13 +353,19 @@ TEST_F(BlackBoxTest, DumpAskedForDuringAnotherIsCopiedAtOnce) {
     }
   };
   auto wait_copies = [&](std::uint64_t n) {
-    for (int i = 0; i < 2000 && box.copies() < n; ++i)
+    for (int i = 0; i < 12000 && box.copies() < n; ++i)
       std::this_thread::sleep_for(std::chrono::milliseconds(5));
     return box.copies();
   };
   push(0, 3);
   ASSERT_TRUE(box.RequestDump("SIGUSR1"));
-  ASSERT_EQ(wait_copies(1), 1U);
+  {
+    // The writer holds the first dump (it waits in on_dump): the copy is
+    // done and the copied dump taken up, not waiting any more.
+    std::unique_lock<std::mutex> lock(mutex);
+    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(60), [&] { return !dumps.empty(); }));
+  }
+  ASSERT_EQ(box.copies(), 1U);
   push(3, 6);
   ASSERT_TRUE(box.accepting()) << "the first dump is being written, none waits";
   ASSERT_TRUE(box.RequestDump("degraded"));
