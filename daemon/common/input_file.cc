@@ -135,7 +135,90 @@ bool ReadJpegSize(const unsigned char* bytes, std::size_t n, long long* width, l
   return false;
 }
 
+/// CRC-32 of PNG chunks (ISO 3309, the one zlib computes).
+std::uint32_t PngCrc(const unsigned char* bytes, std::size_t n) {
+  std::uint32_t crc = 0xFFFFFFFFU;
+  for (std::size_t i = 0; i < n; ++i) {
+    crc ^= bytes[i];
+    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xEDB88320U & (0U - (crc & 1U)));
+  }
+  return crc ^ 0xFFFFFFFFU;
+}
+
+void AppendBigEndian32(std::uint32_t v, std::string* out) {
+  for (int shift = 24; shift >= 0; shift -= 8) out->push_back(static_cast<char>(v >> shift));
+}
+
+void PutLittleEndian32(std::uint32_t v, std::string* out, std::size_t at) {
+  for (int i = 0; i < 4; ++i) (*out)[at + i] = static_cast<char>(v >> (8 * i));
+}
+
+std::optional<std::string> PngWithPaletteFilled(const unsigned char* bytes, std::size_t n,
+                                                unsigned char value) {
+  // IHDR first: bit depth at byte 24, colour type at 25.
+  if (n < 33 || std::memcmp(bytes + 12, "IHDR", 4) != 0 || bytes[25] != 3) return std::nullopt;
+  const int depth = bytes[24];
+  if (depth != 1 && depth != 2 && depth != 4 && depth != 8) return std::nullopt;
+  const std::size_t colours = std::size_t{1} << depth;
+  std::size_t at = 8;
+  while (n - at >= 12) {
+    const std::size_t length = BigEndian32(bytes + at);
+    if (length > n - at - 12) return std::nullopt;  // The decoder refuses it.
+    if (std::memcmp(bytes + at + 4, "PLTE", 4) == 0) {
+      if (length % 3 != 0 || length / 3 >= colours) return std::nullopt;
+      std::string out(reinterpret_cast<const char*>(bytes), at);
+      std::string chunk = "PLTE";
+      chunk.append(reinterpret_cast<const char*>(bytes + at + 8), length);
+      chunk.append(3 * colours - length, static_cast<char>(value));
+      AppendBigEndian32(static_cast<std::uint32_t>(3 * colours), &out);
+      out += chunk;
+      AppendBigEndian32(PngCrc(reinterpret_cast<const unsigned char*>(chunk.data()), chunk.size()),
+                        &out);
+      out.append(reinterpret_cast<const char*>(bytes + at + 12 + length), n - at - 12 - length);
+      return out;
+    }
+    if (std::memcmp(bytes + at + 4, "IDAT", 4) == 0) return std::nullopt;
+    at += 12 + length;
+  }
+  return std::nullopt;
+}
+
+std::optional<std::string> BmpWithPaletteFilled(const unsigned char* bytes, std::size_t n,
+                                                unsigned char value) {
+  // BITMAPINFOHEADER and later: bits a pixel at 28, colours used at 46; the
+  // palette (4 bytes a colour) follows the header, the pixels start at the
+  // offset at 10.
+  if (n < 54 || bytes[0] != 'B' || bytes[1] != 'M') return std::nullopt;
+  const auto header = static_cast<std::uint32_t>(LittleEndian32(bytes + 14));
+  const int bits = bytes[28] | (bytes[29] << 8);
+  if (header < 40 || header > n - 14 || bits < 1 || bits > 8) return std::nullopt;
+  const std::uint32_t colours = 1U << bits;
+  const auto used = static_cast<std::uint32_t>(LittleEndian32(bytes + 46));
+  if (used == 0 || used >= colours) return std::nullopt;        // 0: all of them.
+  const std::size_t end = 14 + header + std::size_t{used} * 4;  // The palette's end.
+  if (end > n) return std::nullopt;
+  const std::size_t added = std::size_t{colours - used} * 4;
+  std::string out(reinterpret_cast<const char*>(bytes), end);
+  for (std::uint32_t i = used; i < colours; ++i) {
+    out.append(3, static_cast<char>(value));
+    out.push_back(0);
+  }
+  out.append(reinterpret_cast<const char*>(bytes + end), n - end);
+  PutLittleEndian32(colours, &out, 46);
+  const auto offset = static_cast<std::uint32_t>(LittleEndian32(bytes + 10));
+  if (offset >= end) PutLittleEndian32(offset + static_cast<std::uint32_t>(added), &out, 10);
+  const auto size = static_cast<std::uint32_t>(LittleEndian32(bytes + 2));
+  if (size != 0) PutLittleEndian32(size + static_cast<std::uint32_t>(added), &out, 2);
+  return out;
+}
+
 }  // namespace
+
+std::optional<std::string> WithPaletteFilled(std::string_view text, unsigned char value) {
+  const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());
+  if (auto png = PngWithPaletteFilled(bytes, text.size(), value)) return png;
+  return BmpWithPaletteFilled(bytes, text.size(), value);
+}
 
 ImageHeaderFacts InspectImageHeader(std::string_view text) {
   const auto* bytes = reinterpret_cast<const unsigned char*>(text.data());

@@ -3,6 +3,7 @@
 /// Opening input files with errors that name the file and say what is wrong.
 
 #include <fstream>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -47,6 +48,15 @@ struct ImageHeaderFacts {
   long long height = 0;
 };
 [[nodiscard]] ImageHeaderFacts InspectImageHeader(std::string_view bytes);
+
+/// A palette image (PNG colour type 3, BMP of 1 to 8 bits a pixel) whose
+/// palette has fewer colours than its pixels can index: a copy with the
+/// palette filled up with the grey `value`; nullopt for any other image. A
+/// pixel that indexes past the palette is damage, which decoders read as
+/// black (background in a mask) without a word: decode the image as it is
+/// and with the palette filled, and refuse it when the two differ.
+[[nodiscard]] std::optional<std::string> WithPaletteFilled(std::string_view bytes,
+                                                           unsigned char value);
 
 /// Whether an encoded image is of a format whose decoder reads an 8-bit mask
 /// as written, by its signature: PNG, PNM/PAM, BMP, TIFF, JPEG, JPEG 2000.

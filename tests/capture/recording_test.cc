@@ -28,6 +28,7 @@
 #include "common/config_error.h"
 #include "geometry/camera_yaml.h"
 #include "silhouette/mask_io.h"
+#include "support/handmade_images.h"
 
 namespace hg::capture {
 namespace {
@@ -604,6 +605,27 @@ TEST_F(RecordingTest, FramesOfAnotherColourKindAreUnreadable) {
     EXPECT_EQ(source.ReadFrame(0, &f), masks) << "grey, masks " << masks;
     EXPECT_EQ(source.ReadFrame(1, &f), !masks) << "colour, masks " << masks;
   }
+}
+
+// A colour frame whose pixels index past its palette decodes as black
+// without a word: unreadable, as a damaged one. One within it reads.
+TEST_F(RecordingTest, PaletteFramesIndexingPastThePaletteAreUnreadable) {
+  fs::create_directories(dir_ / "colour" / "a");
+  std::ofstream(dir_ / "colour" / "a" / "000000.png", std::ios::binary)
+      << testing::PalettePng(6, 4, 1);
+  std::ofstream(dir_ / "colour" / "a" / "000001.png", std::ios::binary)
+      << testing::PalettePng(6, 4, 200);
+  std::ofstream(dir_ / "colour" / "a" / "000002.png", std::ios::binary)
+      << testing::PaletteBmp(6, 4, 200);
+  std::ofstream(dir_ / "manifest.yaml")
+      << "synth: {format: 1, scene: t, rate_hz: 30, start_s: 0, frames: 3, masks: false, "
+         "colour: true}\ncameras:\n  - {name: a}\n";
+  ReplaySource source(ReadRecordingCamera(dir_.string(), "a"), SimClock{});
+  Frame f;
+  ASSERT_TRUE(source.ReadFrame(0, &f));
+  EXPECT_EQ(f.rgb.pixels, std::vector<std::uint8_t>(6 * 4 * 3, 255));
+  EXPECT_FALSE(source.ReadFrame(1, &f));
+  EXPECT_FALSE(source.ReadFrame(2, &f));
 }
 
 // A frame file of a few bytes whose header states a huge image is refused

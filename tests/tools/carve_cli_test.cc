@@ -20,6 +20,7 @@
 #include "scene/exact_mask.h"
 #include "silhouette/mask_io.h"
 #include "support/dense_carve.h"
+#include "support/handmade_images.h"
 #include "support/random_scene.h"
 #include "support/run_tool.h"
 
@@ -28,6 +29,10 @@ namespace {
 
 namespace fs = std::filesystem;
 
+using testing::BigEndian;
+using testing::PaletteBmp;
+using testing::PalettePng;
+using testing::PngCrc;
 using testing::ProcessResult;
 
 ProcessResult Hullguard(const std::string& args) {
@@ -264,21 +269,6 @@ TEST_F(CarveCliTest, ColourMasksCountTheirBrightestChannel) {
   EXPECT_EQ(alpha.out, "");
 }
 
-// PNG chunk CRC (ISO 3309), for a chunk written by hand below.
-std::uint32_t PngCrc(const std::string& type_and_data) {
-  std::uint32_t crc = 0xFFFFFFFFu;
-  for (const char ch : type_and_data) {
-    crc ^= static_cast<unsigned char>(ch);
-    for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ ((crc & 1u) != 0 ? 0xEDB88320u : 0u);
-  }
-  return crc ^ 0xFFFFFFFFu;
-}
-
-std::string BigEndian(std::uint32_t v) {
-  return {static_cast<char>(v >> 24), static_cast<char>(v >> 16), static_cast<char>(v >> 8),
-          static_cast<char>(v)};
-}
-
 // What decoders drop from a mask's own header: a binary PGM's maxval (a 0/1
 // mask with maxval 1 read as raw 0/1 was all background, the person free) and
 // a PNG's transparency key (a keyed-out background dropped, the mask read as
@@ -333,6 +323,40 @@ TEST_F(CarveCliTest, PgmMaxvalIsScaledAndPngColourKeysAreRefused) {
   EXPECT_NE(ras.err.find("plain.ras: not a mask format read reliably (use PNG, "),
             std::string::npos)
       << ras.err;
+}
+
+// A palette mask whose pixels index past its palette is damaged: decoders
+// read those pixels as black, background, and the person in them free. It
+// is refused; a palette mask within its palette reads as drawn.
+TEST_F(CarveCliTest, PaletteMasksIndexingPastThePaletteAreRefused) {
+  std::ofstream(Path("down.yaml")) << "cameras:\n"
+                                   << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
+  std::ofstream(Path("q.txt")) << "1 1 1\n";
+  auto carve = [&](const std::string& mask) {
+    return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
+                     " --bounds 0 0 0 2 2 2 --depth 4 --query " + Path("q.txt"));
+  };
+  const std::pair<const char*, std::string (*)(int, int, unsigned char)> formats[] = {
+      {"png", PalettePng}, {"bmp", PaletteBmp}};
+  for (const auto& [extension, make] : formats) {
+    SCOPED_TRACE(extension);
+    const std::string white = std::string("white.") + extension;
+    const std::string black = std::string("black.") + extension;
+    const std::string past = std::string("past.") + extension;
+    std::ofstream(Path(white), std::ios::binary) << make(64, 48, 1);
+    std::ofstream(Path(black), std::ios::binary) << make(64, 48, 0);
+    std::ofstream(Path(past), std::ios::binary) << make(64, 48, 255);
+    const ProcessResult w = carve(white);
+    EXPECT_EQ(w.code, 0) << w.err;
+    EXPECT_EQ(w.out, "1 1 1 occupied\n");
+    EXPECT_EQ(carve(black).out, "1 1 1 free\n");
+    const ProcessResult r = carve(past);
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(r.out, "");
+    EXPECT_NE(r.err.find(past + ": damaged: pixels index colours its palette does not have"),
+              std::string::npos)
+        << r.err;
+  }
 }
 
 TEST_F(CarveCliTest, BytesAfterThePngEndAreIgnored) {
