@@ -164,6 +164,16 @@ TriangleMesh LoadObj(const std::string& path) {
   while (std::getline(in, line)) {
     ++line_number;
     std::string_view rest(line);
+    if (line_number == 1 && rest.substr(0, 3) == "\xEF\xBB\xBF") rest.remove_prefix(3);  // BOM.
+    // Unknown records are skipped, as OBJ readers do; a control character
+    // (a NUL, say) would make a damaged `v` or `f` record look like one.
+    if (std::any_of(rest.begin(), rest.end(), [](char ch) {
+          const auto c = static_cast<unsigned char>(ch);
+          return (c < 0x20 && kWhitespace.find(ch) == std::string_view::npos) || c == 0x7F;
+        })) {
+      throw common::ConfigError::At(path, line_number,
+                                    "control character in the line (damaged or not an OBJ file)");
+    }
     if (const size_t hash = rest.find('#'); hash != std::string_view::npos) {
       rest = rest.substr(0, hash);
     }
@@ -203,6 +213,11 @@ TriangleMesh LoadObj(const std::string& path) {
                                             std::to_string(vertex_count) + " vertices so far)");
         }
         polygon.push_back(static_cast<int>(zero_based));
+        if (polygon.size() > kMaxPolygonCorners) {
+          throw common::ConfigError::At(path, line_number,
+                                        "f: more than " + std::to_string(kMaxPolygonCorners) +
+                                            " vertices in one face (split it)");
+        }
       }
       if (polygon.size() < 3) {
         throw common::ConfigError::At(path, line_number, "f: needs at least 3 vertices");
@@ -333,6 +348,10 @@ TriangleMesh ParseAsciiStl(const std::string& path, const std::string& data) {
             }
           }
           loop.push_back(index.Add(p));
+          if (loop.size() > kMaxPolygonCorners) {
+            throw fail("vertex: more than " + std::to_string(kMaxPolygonCorners) +
+                       " vertices in one loop (split it)");
+          }
         } else if (keyword == "endloop") {
           if (loop.size() < 3) {
             throw fail("endloop: a facet needs at least 3 vertices, got " +

@@ -3,6 +3,7 @@
 /// Triangle meshes of static obstacles.
 
 #include <array>
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,11 @@ struct TriangleMesh {
   void Append(const TriangleMesh& other);
 };
 
+/// Most corners of one polygon (an OBJ face, an STL loop): cutting it into
+/// triangles takes time quadratic in its corners and more (1000: under a
+/// second at worst).
+inline constexpr std::size_t kMaxPolygonCorners = 1000;
+
 /// Appends to `mesh` triangles covering the planar polygon whose corners are
 /// mesh vertices `polygon` (in order, at least 3), with its winding: ear
 /// clipping in the polygon's plane, so that a concave face (an L-shaped
@@ -31,9 +37,11 @@ void TriangulatePolygon(const std::vector<int>& polygon, TriangleMesh* mesh);
 
 /// Loads a Wavefront OBJ file: `v` and `f` records (polygons are cut into
 /// triangles by TriangulatePolygon(), concave ones too; `f` indices may be
-/// negative or carry /vt/vn parts); other records are ignored.
+/// negative or carry /vt/vn parts); other records are ignored. A UTF-8 byte
+/// order mark is skipped.
 /// @throws common::ConfigError naming the file and line on a missing file, a
-/// malformed number or an index out of range.
+/// malformed number, an index out of range, a face of more than
+/// kMaxPolygonCorners corners or a control character (a NUL) in a line.
 [[nodiscard]] TriangleMesh LoadObj(const std::string& path);
 
 /// Loads an STL file, ASCII (`solid` ... `facet` / `outer loop` / `vertex x y z` ...

@@ -156,10 +156,36 @@ TEST(LoadObjTest, MissingFileNamesTheFile) {
   }
 }
 
+/// Three vertices and a face of `corners` corners going round them.
+std::string HugeFace(int corners) {
+  std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf";
+  for (int i = 0; i < corners; ++i) {
+    text += ' ';
+    text += static_cast<char>('1' + i % 3);
+  }
+  text += '\n';
+  return text;
+}
+
+// A byte order mark before the first record (some Windows exporters) is
+// skipped: it made the first vertex an unknown record, and every face's
+// corners one vertex off. A face of 1000 corners loads.
+TEST(LoadObjTest, ByteOrderMarkIsSkippedAndLargeFacesLoad) {
+  const std::string text = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\n";
+  const ScopedFile plain = WriteFile("plain.obj", text);
+  const ScopedFile bom = WriteFile("bom.obj", "\xEF\xBB\xBF" + text);
+  const TriangleMesh a = LoadObj(plain.path), b = LoadObj(bom.path);
+  ASSERT_EQ(b.vertices.size(), 4U);
+  EXPECT_EQ(a.vertices, b.vertices);
+  EXPECT_EQ(a.triangles, b.triangles);
+  const ScopedFile large = WriteFile("large.obj", HugeFace(1000));
+  EXPECT_FALSE(LoadObj(large.path).triangles.empty());
+}
+
 TEST(LoadObjTest, ErrorsNameFileAndLine) {
   struct Case {
     const char* name;
-    const char* text;
+    std::string text;
     int line;
     const char* fragment;
   };
@@ -180,6 +206,11 @@ TEST(LoadObjTest, ErrorsNameFileAndLine) {
       // vertices read so far.
       {"forward.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\nv 0 1 0\n", 3, "out of range"},
       {"two_vertices.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n", 4, "at least 3"},
+      // A NUL before a record would make a damaged record an unknown one,
+      // skipped: every later face's corners shifted.
+      {"nul.obj", std::string("v 0 0 0\n\0v 1 0 0\nv 0 1 0\n", 24), 2, "control character"},
+      // Ear clipping takes time quadratic in the corners and more.
+      {"huge_face.obj", HugeFace(1001), 4, "more than 1000 vertices in one face"},
   };
   for (const Case& c : cases) {
     SCOPED_TRACE(c.name);
