@@ -946,7 +946,9 @@ class Reader {
       return std::nullopt;
     }
     if (!box.IsPlausibleCell()) {
-      Error(e.at("max").line, e.at("max").path, "coordinates must be within +-1e6 m");
+      // The corner that lies out there is named.
+      const char* key = box.min.cwiseAbs().maxCoeff() > common::kMaxCoordinateM ? "min" : "max";
+      Error(e.at(key).line, e.at(key).path, "coordinates must be within +-1e6 m");
       return std::nullopt;
     }
     return box;

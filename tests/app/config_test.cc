@@ -475,6 +475,7 @@ const Mistake kMistakes[] = {
      "not a regular file (a pipe, socket or device): '/dev/null'"},
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, <<: {camera: cam1}}", 13,
      "cameras[0].source", "merge keys ('<<') are not read: write the keys out"},
+    {"min: [-1, -2, 0]", "min: [-2e6, -2, 0]", 2, "cell.bounds.min", "within +-1e6 m"},
 };
 
 TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {
