@@ -19,6 +19,7 @@
 
 #include "common/check.h"
 #include "common/config_error.h"
+#include "common/limits.h"
 #include "placement/mounting.h"
 
 namespace hg::placement {
@@ -234,9 +235,12 @@ void CheckRequest(int cameras, int min_views, const std::string& source) {
     throw common::ConfigError::At(
         source, 0, "--cameras: must be at least 1 (got " + std::to_string(cameras) + ")");
   }
-  if (cameras > 64) {
-    throw common::ConfigError::At(
-        source, 0, "--cameras: at most 64 cameras (got " + std::to_string(cameras) + ")");
+  if (cameras > common::kMaxCameras) {
+    // The cameras file is for hullguardd and hullguard carve, which take no more.
+    throw common::ConfigError::At(source, 0,
+                                  "--cameras: at most " + std::to_string(common::kMaxCameras) +
+                                      " cameras, as hullguardd and hullguard carve take (got " +
+                                      std::to_string(cameras) + ")");
   }
   if (min_views < 1 || min_views > cameras) {
     throw common::ConfigError::At(source, 0,

@@ -118,6 +118,13 @@ TEST_F(PlaceCliTest, BadRequestsExitWithTwoAndSayWhy) {
   EXPECT_EQ(none.code, 2);
   EXPECT_NE(none.err.find("place: --cameras: must be at least 1 (got 0)"), std::string::npos)
       << none.err;
+  // The cameras file must load in hullguardd and hullguard carve.
+  const auto seventeen = Place(PaperCell(), "--cameras 17", "x");
+  EXPECT_EQ(seventeen.code, 2);
+  EXPECT_NE(seventeen.err.find("place: --cameras: at most 16 cameras, as hullguardd and hullguard "
+                               "carve take (got 17)"),
+            std::string::npos)
+      << seventeen.err;
   const auto too_many = Place(PaperCell(), "--cameras 3 --min-views 4", "x");
   EXPECT_EQ(too_many.code, 2);
   EXPECT_NE(too_many.err.find("--min-views: must be between 1 and --cameras (3), got 4"),
