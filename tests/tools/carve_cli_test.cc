@@ -213,6 +213,24 @@ TEST_F(CarveCliTest, QueryFileWithoutPointsPrintsNothing) {
   EXPECT_EQ(r.err, "");
 }
 
+// A query line that is not three finite numbers is an error naming the file
+// and line, exit 2, nothing printed: a NUL inside a number too (it ended
+// the number's read, so "1 1\0 5" was the point 1 1 5, echoed as "1 1").
+TEST_F(CarveCliTest, BadQueryLinesNameTheFileAndLine) {
+  const std::string bad[] = {"1 2",   "1 2 3 4",   "nan 1 2",
+                             "1 2 x", "1e999 0 0", std::string("1 1\0 5", 6)};
+  for (const std::string& line : bad) {
+    SCOPED_TRACE(line);
+    std::ofstream(Path("q.txt"), std::ios::binary) << "# points\n1 1 1\n" << line << "\n";
+    const ProcessResult r = Hullguard(Base() + " --query " + Path("q.txt"));
+    EXPECT_EQ(r.code, 2) << r.out;
+    EXPECT_EQ(r.out, "");
+    EXPECT_NE(r.err.find(Path("q.txt") + ":3: expected 'x y z' (finite numbers)"),
+              std::string::npos)
+        << r.err;
+  }
+}
+
 TEST_F(CarveCliTest, ThresholdChoosesForeground) {
   // One camera looking down at the middle of the cell, a mask of grey 100
   // everywhere: background at the default threshold (127), foreground above 50.

@@ -198,7 +198,8 @@ std::vector<QueryPoint> ReadQueryPoints(const std::string& path) {
     for (int axis = 0; ok && axis < 3; ++axis) {
       char* end = nullptr;
       q.p_W[axis] = std::strtod(token[axis].c_str(), &end);
-      ok = *end == '\0' && std::isfinite(q.p_W[axis]);
+      // The whole token: a NUL inside it ends strtod's read, not the token.
+      ok = end == token[axis].c_str() + token[axis].size() && std::isfinite(q.p_W[axis]);
     }
     if (!ok) {
       if (!line.empty() && line.back() == '\r') line.pop_back();
