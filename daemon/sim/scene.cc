@@ -99,6 +99,13 @@ class Value {
     return value;
   }
 
+  /// A size or a scale: > 0 and, as coordinates, at most 1e6 (m).
+  [[nodiscard]] double Size() const {
+    const double value = Positive();
+    if (!(value <= common::kMaxCoordinateM)) Fail("must be at most 1e6");
+    return value;
+  }
+
   [[nodiscard]] double NonNegative() const {
     const double value = Number();
     if (!(value >= 0.0)) Fail("must be >= 0");
@@ -435,7 +442,8 @@ class SceneParser {
             "unknown camera '" + name + "'" +
             (names.empty() ? " (the scene has no cameras)" : " (cameras: " + Join(names) + ")"));
       }
-      camera->time_offset_s = 1e-3 * offset.Number();
+      // Within a second either way, as a synth recording's manifest takes it.
+      camera->time_offset_s = 1e-3 * offset.InRange(-1000.0, 1000.0);
     }
   }
 
@@ -498,7 +506,7 @@ class SceneParser {
     map.Exclusive({"base", "height"}, {"a", "b"},
                   "give either base+height (vertical) or a+b, not both");
     CylinderSolid cylinder;
-    cylinder.radius_m = map.Get("radius").Positive();
+    cylinder.radius_m = map.Get("radius").Size();
     if (map.Has("a") || map.Has("b")) {
       cylinder.a_W = map.Get("a").Vector3();
       cylinder.b_W = map.Get("b").Vector3();
@@ -506,7 +514,7 @@ class SceneParser {
       return cylinder;
     }
     cylinder.a_W = map.Get("base").Vector3();
-    cylinder.b_W = cylinder.a_W + Eigen::Vector3d(0, 0, map.Get("height").Positive());
+    cylinder.b_W = cylinder.a_W + Eigen::Vector3d(0, 0, map.Get("height").Size());
     return cylinder;
   }
 
@@ -515,7 +523,7 @@ class SceneParser {
     CapsuleSolid capsule;
     capsule.a_W = map.Get("a").Vector3();
     capsule.b_W = map.Get("b").Vector3();
-    capsule.radius_m = map.Get("radius").Positive();
+    capsule.radius_m = map.Get("radius").Size();
     return capsule;
   }
 
@@ -535,7 +543,7 @@ class SceneParser {
     if (solid.mesh.triangles.empty()) {
       file.Fail("mesh has no triangles: " + path.string());
     }
-    const double scale = map.Has("scale") ? map.Get("scale").Positive() : 1.0;
+    const double scale = map.Has("scale") ? map.Get("scale").Size() : 1.0;
     const double yaw = map.Has("yaw_deg") ? map.Get("yaw_deg").Degrees() : 0.0;
     const Eigen::Vector3d translate =
         map.Has("translate") ? map.Get("translate").Vector3() : Eigen::Vector3d::Zero();

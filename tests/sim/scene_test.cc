@@ -548,6 +548,8 @@ TEST(SceneErrorTest, ValueRanges) {
               "obstacles[1].cylinder.radius: must be > 0");
   ExpectError(Replace(kBase, "height: 2}", "height: -2}"), 14,
               "obstacles[1].cylinder.height: must be > 0");
+  ExpectError(Replace(kBase, "radius: 0.1", "radius: 1e300"), 14,
+              "obstacles[1].cylinder.radius: must be at most 1e6");
   ExpectError(Replace(kBase, "{min: [1, 1, 0.7], max: [2, 2, 0.75]}",
                       "{centre: [1, 1, 0.7], size: [1, 1, 0]}"),
               12, "obstacles[0].box.size[2]: must be > 0");
@@ -630,6 +632,9 @@ TEST(SceneErrorTest, CamerasAndOffsets) {
               "capture_offsets_ms.c9: unknown camera 'c9' (cameras: c0)");
   ExpectError(std::string(kBase) + "capture_offsets_ms: {c0: fast}\n", 31,
               "capture_offsets_ms.c0: expected a number");
+  // A synth recording's manifest takes offsets within a second.
+  ExpectError(std::string(kBase) + "capture_offsets_ms: {c0: 1e300}\n", 31,
+              "capture_offsets_ms.c0: must be in [-1000, 1000]");
   // Camera entries report through the camera block's own parser.
   ExpectError(
       Replace(kBase, "    look_at: [2, 2, 1]\n", "    look_at: [2, 2, 1]\n    t: [0, 0, 1]\n"), 11,
