@@ -41,6 +41,8 @@ constexpr std::streamoff kMaxFrameFileBytes = std::streamoff{1} << 30;
 constexpr long long kMaxFrameSide = 1LL << 16;
 // Frame rates and spans a recording may claim.
 constexpr double kMaxRateHz = 1000.0;
+/// As a scene's rate_hz (docs/scenes.md): below it, frame times run into days.
+constexpr double kMinRateHz = 0.1;
 /// Frame sets a synth manifest may claim (9 hours at 30 Hz): each is listed
 /// in memory before any is read.
 constexpr int kMaxSynthFrames = 1'000'000;
@@ -176,10 +178,10 @@ RecordingCamera ReadSynth(const YAML::Node& root, const std::string& manifest,
     Fail(manifest, head, "synth",
          std::string("expected rate_hz, frames, masks, colour: ") + e.what());
   }
-  if (!(r.rate_hz > 0.0 && r.rate_hz <= kMaxRateHz) || frames < 1 || frames > kMaxSynthFrames ||
-      (!masks && !colour)) {
+  if (!(r.rate_hz >= kMinRateHz && r.rate_hz <= kMaxRateHz) || frames < 1 ||
+      frames > kMaxSynthFrames || (!masks && !colour)) {
     Fail(manifest, head, "synth",
-         "needs 0 < rate_hz <= " + std::to_string(static_cast<int>(kMaxRateHz)) +
+         "needs 0.1 <= rate_hz <= " + std::to_string(static_cast<int>(kMaxRateHz)) +
              ", 1 <= frames <= " + std::to_string(kMaxSynthFrames) + " and masks or colour");
   }
   const YAML::Node c = CameraEntry(root, manifest, camera);

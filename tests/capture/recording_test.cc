@@ -795,8 +795,8 @@ TEST_F(RecordingTest, MeaninglessRatesOffsetsAndStampsAreRefused) {
     }
   };
   EXPECT_EQ(synth("30", "0.01"), "");
-  for (const char* rate : {".inf", ".nan", "0", "1e6"}) {
-    EXPECT_NE(synth(rate, "0").find("manifest.yaml:1: synth: needs 0 < rate_hz <= 1000"),
+  for (const char* rate : {".inf", ".nan", "0", "1e6", "1e-300", "0.09"}) {
+    EXPECT_NE(synth(rate, "0").find("manifest.yaml:1: synth: needs 0.1 <= rate_hz <= 1000"),
               std::string::npos)
         << rate;
   }
