@@ -439,6 +439,12 @@ TEST(SceneErrorTest, OverflowingNumbersAreRefused) {
               "a second YAML document ('---'): a file holds one");
   ExpectError(Replace(kBase, "imaging: {noise_sigma: 1.0}", "imaging: {<<: {noise_sigma: 1.0}}"),
               30, "imaging: merge keys ('<<') are not read: write the keys out");
+  // A tag is no instruction the readers follow: `!!str 1.0` was read as 1.0.
+  ExpectError(Replace(kBase, "imaging: {noise_sigma: 1.0}", "imaging: {noise_sigma: !!str 1.0}"),
+              30, "a YAML tag ('!!str'): tags are not read, write the plain value");
+  // An alias is the node it names: a tree of aliases is checked node by node.
+  ExpectError(std::string(kBase) + "x: &a [1, 1]\ny: &b [*a, *a, *a, *a]\nz: [*b, *b, !w 1]\n", 33,
+              "a YAML tag ('!w')");
   // A NUL byte went into the key, and the message naming it was cut there.
   ExpectError(Replace(kBase, "imaging: {noise_sigma", std::string("imag\0ing: {noise_sigma", 22)),
               30, "a NUL byte: not a YAML text file (binary, or saved as UTF-16?)");
