@@ -105,6 +105,25 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
     blob_filter_ =
         std::make_unique<BlobFilter>(options_.publish_depth, std::max<std::size_t>(1, min_cells));
   }
+  // The snapshots, made now with room for what a cycle writes into them, so
+  // that cycles allocate nothing (FreeSnapshot). Runs along x: a row of n
+  // published cells holds at most n / 2 runs of one kind; the reserve stops
+  // at 2^20 runs (8 MiB, address space until the cells are there: publish
+  // depths up to 7 never need more).
+  const std::size_t n = std::size_t{1} << options_.publish_depth;
+  const std::size_t runs = std::min<std::size_t>(n * n * ((n + 1) / 2), std::size_t{1} << 20);
+  pool_.reserve(kSnapshotPool);
+  for (int i = 0; i < kSnapshotPool; ++i) {
+    auto snapshot = std::make_shared<OccupancySnapshot>();
+    snapshot->health.cameras.resize(cameras_.size());
+    for (std::size_t c = 0; c < cameras_.size(); ++c) {
+      snapshot->health.cameras[c].name = cameras_[c]->model.name;
+    }
+    snapshot->root_levels.reserve(512);
+    snapshot->occupied.reserve(runs);
+    snapshot->occluded.reserve(runs);
+    pool_.push_back(std::move(snapshot));
+  }
 }
 
 Pipeline::~Pipeline() {
@@ -358,6 +377,8 @@ std::shared_ptr<OccupancySnapshot> Pipeline::FreeSnapshot() {
       return s;
     }
   }
+  // More holders than kSnapshotPool counts (readers of Latest() keeping
+  // theirs): one more, which allocates.
   pool_.push_back(std::make_shared<OccupancySnapshot>());
   return pool_.back();
 }

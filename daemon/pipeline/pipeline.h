@@ -147,6 +147,11 @@ class Pipeline {
  public:
   /// A margin is lowered only after this long (ns) without a lag needing it.
   static constexpr std::int64_t kMarginHoldNs = 2'000'000'000;
+  /// Snapshots made at construction: the newest (Latest()), one being
+  /// filled, and for each of the daemon's two consumers (the occupancy
+  /// publisher and tracking) the three its handoff (common::LatestValue)
+  /// holds and the one it works on, plus two for readers of Latest().
+  static constexpr int kSnapshotPool = 1 + 1 + 2 * (3 + 1) + 2;
 
   using Consumer = std::function<void(const std::shared_ptr<const OccupancySnapshot>&)>;
 
