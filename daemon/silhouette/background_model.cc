@@ -144,13 +144,15 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
 /// reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
 /// 2^16 / (frames averaged + 1), 0 for the first frame (the mean becomes x).
 /// With `unbias_q12` > 0 the deviation of x from the new mean, in quarter
-/// levels, is added up, and its largest value kept in `peak` (levels).
+/// levels, has its largest value kept in `peak` (levels), and with
+/// `add_deviation` it is also added up (the noise).
 /// 32-bit lanes suffice: |x - m| < 2^16 and
 /// inverse_count <= 2^15 after the first frame, and (p + 2^15) >> 16 is
 /// computed as ((p >> 1) + 2^14) >> 15, which is the same for every p.
 HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_t n,
                                 std::uint32_t inverse_gain, std::int32_t inverse_count,
-                                std::int32_t unbias_q12, std::uint8_t* __restrict mean_high,
+                                std::int32_t unbias_q12, bool add_deviation,
+                                std::uint8_t* __restrict mean_high,
                                 std::uint8_t* __restrict mean_low,
                                 std::uint16_t* __restrict deviation,
                                 std::uint8_t* __restrict peak) {
@@ -168,7 +170,7 @@ HG_VECTOR_CLONES void LearnSpan(const std::uint8_t* __restrict frame, std::size_
       // 8.8 -> quarter levels: >> 6; Q12: >> 12.
       const std::int32_t term = (d * unbias_q12) >> 18;
       const std::int32_t capped = term < kMaxDeviationTerm ? term : kMaxDeviationTerm;
-      deviation[i] = static_cast<std::uint16_t>(deviation[i] + capped);
+      if (add_deviation) deviation[i] = static_cast<std::uint16_t>(deviation[i] + capped);
       const auto level = static_cast<std::uint8_t>(capped >> 2);
       peak[i] = level > peak[i] ? level : peak[i];
     }
@@ -543,15 +545,20 @@ void BackgroundModel::Learn(const std::uint8_t* frame) {
   // x = frame / gain in 8.8: frame * (2^24 / gain_q8) >> 8.
   const auto inverse_gain = static_cast<std::uint32_t>((1u << 24) / gain_q8);
   const std::int64_t inverse_count = (std::int64_t{1} << 16) / (k + 1);
+  // The noise is measured over the last frames (at most kMaxDeviationFrames:
+  // the sums are 16-bit); what passed is looked for in every frame after the
+  // first: something in view over the first of many learning frames (a
+  // person leaving) shows as the frame that differs from the mean of those
+  // before it.
   const bool measure_noise = k >= 1 && k >= options_.learn_frames - kMaxDeviationFrames;
   // |x - mean after this frame| has deviation sigma * sqrt(k / (k + 1)) for a
   // mean of k + 1 samples; scaling by sqrt((k + 1) / k) makes it unbiased.
   const auto unbias_q12 =
-      measure_noise ? static_cast<std::int64_t>(std::lround(4096.0 * std::sqrt((k + 1.0) / k))) : 0;
+      k >= 1 ? static_cast<std::int64_t>(std::lround(4096.0 * std::sqrt((k + 1.0) / k))) : 0;
   const std::size_t n = static_cast<std::size_t>(width_) * height_ * channels_;
   LearnSpan(frame, n, inverse_gain, k == 0 ? 0 : static_cast<std::int32_t>(inverse_count),
-            static_cast<std::int32_t>(unbias_q12), mean_high_.data(), mean_low_.data(),
-            deviation_.data(), peak_.data());
+            static_cast<std::int32_t>(unbias_q12), measure_noise, mean_high_.data(),
+            mean_low_.data(), deviation_.data(), peak_.data());
   if (measure_noise) ++deviation_frames_;
 }
 
