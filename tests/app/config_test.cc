@@ -428,7 +428,7 @@ const Mistake kMistakes[] = {
     {"distortion: [-0.1, 0.01, 0, 0, 0]", "distortion: [-0.1, x, 0, 0, 0]", 40,
      "cameras[3].distortion[1]", "not a number"},
     {"threshold: 30", "threshold: 256", 44, "background.threshold", "must be in 1 .. 255"},
-    {"adapt_rate: 0.05", "adapt_rate: 1.5", 44, "background.adapt_rate", "must be in 0 .. 1"},
+    {"adapt_rate: 0.05", "adapt_rate: 1.5", 44, "background.adapt_rate", "must be in 0 .. 0.25"},
     {"file: demo_cell/obstacles.obj", "file: demo_cell/cameras.yaml", 46, "obstacles[0].file",
      ".obj or .stl"},
     {"file: demo_cell/obstacles.obj", "file: demo_cell/none.obj", 46, "obstacles[0].file",
@@ -476,6 +476,8 @@ const Mistake kMistakes[] = {
     {"scene: scenes/demo_cell.yaml}", "scene: scenes/demo_cell.yaml, <<: {camera: cam1}}", 13,
      "cameras[0].source", "merge keys ('<<') are not read: write the keys out"},
     {"min: [-1, -2, 0]", "min: [-2e6, -2, 0]", 2, "cell.bounds.min", "within +-1e6 m"},
+    // The background model takes no more: the config said OK, the start failed.
+    {"adapt_rate: 0.05", "adapt_rate: 0.5", 44, "background.adapt_rate", "must be in 0 .. 0.25"},
 };
 
 TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {
