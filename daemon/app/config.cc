@@ -1600,7 +1600,9 @@ std::optional<CameraConfig> ReadCamera(Reader& r, const Item& entry, SceneCache*
       ReplaySourceConfig replay = ReadSource<ReplaySourceConfig>(r, source, kReplayFields, &e_src);
       if (replay.camera.empty()) replay.camera = camera.model.name;
       const auto dir_it = e_src.find("directory");
-      if (!replay.directory.empty() && dir_it != e_src.end() &&
+      // Without a camera name (the camera block's own errors left none) there
+      // is no camera to look for in the recording.
+      if (!replay.directory.empty() && !replay.camera.empty() && dir_it != e_src.end() &&
           std::filesystem::is_directory(replay.directory)) {
         CheckRecording(r, entry, e, e_src, replay, ok ? &camera.model : nullptr);
       }

@@ -478,6 +478,13 @@ const Mistake kMistakes[] = {
     {"min: [-1, -2, 0]", "min: [-2e6, -2, 0]", 2, "cell.bounds.min", "within +-1e6 m"},
     // The background model takes no more: the config said OK, the start failed.
     {"adapt_rate: 0.05", "adapt_rate: 0.5", 44, "background.adapt_rate", "must be in 0 .. 0.25"},
+    // A camera block too broken to have a name: its recording is not searched
+    // for a camera '' (a second, misleading error).
+    {"4.7885123010878994]\n    source: {type: replay, directory: "
+     "../tests/data/small_cell_recording, "
+     "camera: cam2,",
+     "x]\n    source: {type: replay, directory: ../tests/data/small_cell_recording,", 19,
+     "cameras[1].t[2]", "not a number"},
 };
 
 TEST(ConfigTest, EachMistakeNamesFileLineAndKey) {
