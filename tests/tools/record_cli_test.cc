@@ -24,6 +24,7 @@
 
 #include "capture/recording.h"
 #include "geometry/camera_yaml.h"
+#include "silhouette/mask_io.h"
 #include "sim/ground_truth.h"
 #include "support/run_tool.h"
 #include "support/small_cell_config.h"
@@ -493,6 +494,17 @@ TEST_F(RecordCliTest, ReplayChecksTheCalibrationAndTimesOutAGapInTheRecording) {
   r = Hullguard(replay);
   ASSERT_EQ(r.code, 0) << r.out << r.err;
   EXPECT_NE(r.out.find(", 0 cycles degraded"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find(" 0 frames missing or unreadable"), std::string::npos) << r.out;
+
+  // A frame of another size than its camera's is unreadable, and counted so
+  // (a synth recording does not state its frames' size).
+  const fs::path frame = rec / "masks" / "cam1" / "000002.png";
+  fs::rename(frame, dir_ / "kept.png");
+  silhouette::WriteGreyImage(frame.string(), common::ImageU8(321, 180));
+  r = Hullguard(replay);
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  EXPECT_NE(r.out.find(" 1 frames missing or unreadable"), std::string::npos) << r.out;
+  fs::rename(dir_ / "kept.png", frame);
 
   // Frame sets 3 to 10 (267 ms, over the 200 ms camera timeout) gone.
   for (const char* camera : {"cam0", "cam1", "cam2"}) {

@@ -264,6 +264,14 @@ class TruthCoverage {
   std::vector<pipeline::GridRun> occupied_scratch_, occluded_scratch_;
 };
 
+/// Whether a frame has its camera's size (a synth recording does not state
+/// its frames' size: one of another size is unreadable, as a damaged one).
+bool FitsCamera(const capture::Frame& frame, const geometry::CameraModel& model) {
+  const bool rgb = frame.kind == capture::FrameKind::kRgb;
+  return (rgb ? frame.rgb.width : frame.grey.width) == model.width &&
+         (rgb ? frame.rgb.height : frame.grey.height) == model.height;
+}
+
 /// The earliest recorded capture time of frame set `set` over the cameras.
 std::int64_t FirstCaptureNs(const std::vector<std::unique_ptr<capture::ReplaySource>>& readers,
                             int set) {
@@ -351,7 +359,7 @@ int RunReplay(const ReplayFlags& f) {
         }
       }
       for (std::size_t c = 0; c < readers.size(); ++c) {
-        if (!readers[c]->ReadFrame(i, &frame)) {
+        if (!readers[c]->ReadFrame(i, &frame) || !FitsCamera(frame, config.cameras[c].model)) {
           ++missing;
           continue;
         }
@@ -407,7 +415,8 @@ int RunReplay(const ReplayFlags& f) {
       for (std::size_t c = 0; c < readers.size(); ++c) {
         const capture::RecordingCamera& r = readers[c]->recording();
         for (; next[c] < readers[c]->frames() && r.frames[next[c]].time_ns <= now_ns; ++next[c]) {
-          if (!readers[c]->ReadFrame(next[c], &frame)) {
+          if (!readers[c]->ReadFrame(next[c], &frame) ||
+              !FitsCamera(frame, config.cameras[c].model)) {
             ++missing;
             continue;
           }
