@@ -21,6 +21,9 @@
 #ifndef HG_DEFAULT_SCENE
 #define HG_DEFAULT_SCENE "config/scenes/demo_cell.yaml"
 #endif
+#ifndef HG_BUILD_TOOLS_DIR
+#define HG_BUILD_TOOLS_DIR ""
+#endif
 #ifndef HG_INSTALLED_SCENE
 #define HG_INSTALLED_SCENE "/usr/share/hullguard/scenes/demo_cell.yaml"
 #endif
@@ -30,14 +33,22 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// The demo cell of the source tree the tool was built from, or else the
-/// installed one.
+/// The demo cell: the source tree's for the tool in its build tree; for an
+/// installed tool the one installed beside it (<prefix>/share/hullguard,
+/// wherever the prefix was moved), else the one of the configured prefix;
+/// the source tree's as the last resort.
 std::string DefaultScene() {
   std::error_code ec;
-  if (fs::is_regular_file(HG_DEFAULT_SCENE, ec) || !fs::is_regular_file(HG_INSTALLED_SCENE, ec)) {
-    return HG_DEFAULT_SCENE;
+  const fs::path exe = fs::canonical("/proc/self/exe", ec);
+  const fs::path build_dir = fs::weakly_canonical(HG_BUILD_TOOLS_DIR, ec);
+  const bool in_build_tree = !exe.empty() && exe.parent_path() == build_dir;
+  if (!in_build_tree) {
+    const fs::path beside =
+        exe.parent_path().parent_path() / "share/hullguard/scenes/demo_cell.yaml";
+    if (!exe.empty() && fs::is_regular_file(beside, ec)) return beside.string();
+    if (fs::is_regular_file(HG_INSTALLED_SCENE, ec)) return HG_INSTALLED_SCENE;
   }
-  return HG_INSTALLED_SCENE;
+  return HG_DEFAULT_SCENE;
 }
 
 struct DemoFlags {
@@ -132,6 +143,7 @@ int RunDemo(const DemoFlags& f) {
       summary, sizeof(summary),
       "hullguard demo: scene %s, %zu cameras %dx%d, %zu people, %d frames (%.1f s), depth %d "
       "(%d^3 cells), %d threads\n"
+      "  scene file %s\n"
       "  bounds %.2f %.2f %.2f .. %.2f %.2f %.2f\n"
       "  last frame: occupied %.4f m^3, occluded %.4f m^3, free %.4f m^3; %lld leaves, %lld "
       "nodes\n"
@@ -141,8 +153,8 @@ int RunDemo(const DemoFlags& f) {
       "  wrote snapshot.png, cameras.png, frames/, hull.ply, masks, cameras.yaml, obstacles.obj "
       "in %s\n",
       s.name.c_str(), s.cameras.size(), s.cameras[0].model.width, s.cameras[0].model.height,
-      s.people.size(), f.frames, f.frames * dt, f.depth, 1 << f.depth, f.threads, b.min.x(),
-      b.min.y(), b.min.z(), b.max.x(), b.max.y(), b.max.z(),
+      s.people.size(), f.frames, f.frames * dt, f.depth, 1 << f.depth, f.threads, f.scene.c_str(),
+      b.min.x(), b.min.y(), b.min.z(), b.max.x(), b.max.y(), b.max.z(),
       tree.Volume(octree::LeafState::kOccupied), tree.Volume(octree::LeafState::kOccluded),
       tree.Volume(octree::LeafState::kFree), static_cast<long long>(tree.NumLeaves()),
       static_cast<long long>(tree.NumNodes()), median(render_ms), median(quadtree_ms),
