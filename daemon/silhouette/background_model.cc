@@ -292,7 +292,9 @@ namespace {
 // deviation over its channels (uint16), all in host byte order; the checksum
 // (FNV-1a, 64 bit) covers everything after the header.
 struct SavedHeader {
-  char magic[8] = {'H', 'G', 'B', 'G', 'M', 'O', 'D', '1'};
+  // Format 2: the checksum covers the size and frame count too (format 1's
+  // did not: a flipped bit of deviation_frames was taken up).
+  char magic[8] = {'H', 'G', 'B', 'G', 'M', 'O', 'D', '2'};
   std::int32_t width = 0;
   std::int32_t height = 0;
   std::int32_t channels = 0;
@@ -312,6 +314,15 @@ class Fnv1a {
   std::uint64_t hash_ = 0xcbf29ce484222325ULL;
 };
 
+/// The header's fields into the checksum (all but the checksum itself).
+void AddHeader(const SavedHeader& header, Fnv1a* sum) {
+  sum->Add(header.magic, sizeof(header.magic));
+  for (const std::int32_t v :
+       {header.width, header.height, header.channels, header.deviation_frames}) {
+    sum->Add(&v, sizeof(v));
+  }
+}
+
 }  // namespace
 
 bool BackgroundModel::Save(const std::string& path, std::string* error) const {
@@ -330,6 +341,7 @@ bool BackgroundModel::Save(const std::string& path, std::string* error) const {
   header.channels = channels_;
   header.deviation_frames = deviation_frames_;
   Fnv1a sum;
+  AddHeader(header, &sum);
   sum.Add(mean_high_.data(), values);
   sum.Add(mean_low_.data(), values);
   sum.Add(noise.data(), noise.size() * sizeof(std::uint16_t));
@@ -371,12 +383,23 @@ bool BackgroundModel::Load(const std::string& path, std::string* error, int chan
   SavedHeader header;
   const SavedHeader expected;
   in.read(reinterpret_cast<char*>(&header), sizeof(header));
-  if (!in || std::memcmp(header.magic, expected.magic, sizeof(header.magic)) != 0) {
+  if (!in || std::memcmp(header.magic, expected.magic, sizeof(header.magic) - 1) != 0) {
     *error = path + ": not a saved background";
     return false;
   }
+  if (header.magic[7] != expected.magic[7]) {
+    *error = path +
+             ": a background saved in another format (an older hullguard's?); teach it "
+             "again";
+    return false;
+  }
+  if (header.deviation_frames < 0 || header.deviation_frames > kMaxDeviationFrames) {
+    *error = path + ": damaged (a noise of " + std::to_string(header.deviation_frames) +
+             " frames, at most " + std::to_string(kMaxDeviationFrames) + " are learned)";
+    return false;
+  }
   if (header.width != width_ || header.height != height_ ||
-      (header.channels != 1 && header.channels != 3) || header.deviation_frames < 0) {
+      (header.channels != 1 && header.channels != 3)) {
     *error = path + ": a background of " + std::to_string(header.width) + "x" +
              std::to_string(header.height) + " pixels, " + std::to_string(header.channels) +
              " channels; the camera is " + std::to_string(width_) + "x" + std::to_string(height_);
@@ -398,6 +421,7 @@ bool BackgroundModel::Load(const std::string& path, std::string* error, int chan
   in.read(reinterpret_cast<char*>(noise.data()),
           static_cast<std::streamsize>(pixels * sizeof(std::uint16_t)));
   Fnv1a sum;
+  AddHeader(header, &sum);
   sum.Add(high.data(), values);
   sum.Add(low.data(), values);
   sum.Add(noise.data(), noise.size() * sizeof(std::uint16_t));
@@ -579,9 +603,11 @@ void BackgroundModel::FinishLearning() {
     // learned): it biased the mean and the noise there, which could hide a
     // person of the contrast the threshold promises. Such a pixel is
     // unreliable, always foreground, and saved so (its noise saturated).
+    // A saturated noise (0xFFFF, more than learning can add up) is such a
+    // pixel taken up from a saved background, whatever the thresholds.
     int peak = 0;
     for (int k = 0; k < c; ++k) peak = std::max<int>(peak, peak_[p * c + k]);
-    const bool passed = peak >= rounded;
+    const bool passed = peak >= rounded || largest == 0xFFFF;
     if (passed) {
       for (int k = 0; k < c; ++k) deviation_[p * c + k] = 0xFFFF;
     }

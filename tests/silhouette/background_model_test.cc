@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <new>
 #include <random>
@@ -882,6 +883,33 @@ TEST(BackgroundModelTest, WhatPassedWhileLearningLeavesAlwaysForeground) {
   ASSERT_TRUE(restarted.Load(path, &error)) << error;
   EXPECT_EQ(restarted.ThresholdAt(25, 25), -1);
   EXPECT_EQ(restarted.ThresholdAt(5, 5), model.ThresholdAt(5, 5));
+  // Whatever the thresholds of the restart: with noise_sigmas 0 the pixels
+  // were taken up at the least threshold, reliable.
+  BackgroundModelOptions no_noise = options;
+  no_noise.noise_sigmas = 0.0;
+  BackgroundModel strict(kW, kH, no_noise);
+  ASSERT_TRUE(strict.Load(path, &error)) << error;
+  EXPECT_EQ(strict.ThresholdAt(25, 25), -1);
+  EXPECT_EQ(strict.ThresholdAt(5, 5), options.min_threshold);
+  // The header is checked too: a flipped bit of its frame count (which sets
+  // every threshold) was taken up. Bytes 20..23: the frame count, here
+  // within its range (the checksum tells) and out of it.
+  for (const std::streamoff at : {std::streamoff{20}, std::streamoff{21}}) {
+    SCOPED_TRACE(at);
+    const std::string flipped = path + ".flipped";
+    std::filesystem::copy_file(path, flipped, std::filesystem::copy_options::overwrite_existing);
+    {
+      std::fstream f(flipped, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekg(at);
+      const char byte = static_cast<char>(f.get());
+      f.seekp(at);
+      f.put(static_cast<char>(byte ^ (at == 20 ? 0x01 : 0x40)));
+    }
+    BackgroundModel damaged(kW, kH, options);
+    EXPECT_FALSE(damaged.Load(flipped, &error));
+    EXPECT_NE(error.find("damaged"), std::string::npos) << error;
+    std::remove(flipped.c_str());
+  }
   std::remove(path.c_str());
 }
 
