@@ -161,8 +161,10 @@ TEST_F(RecordCliTest, CameraWithoutFramesReplaysAsOneThatNeverDelivers) {
   ASSERT_NE(at, std::string::npos);
   text.replace(at, cam2.size(), "source: {type: sim, scene: " + kScene + ", stop_after_s: 0}}\n");
   std::ofstream(Path("dead_cam2.yaml")) << text;
+  // 3 s: the daemon's first health line, a second after its start, must
+  // come while the recording still plays, on a loaded machine too.
   const auto rec = Hullguard("record --config " + Path("dead_cam2.yaml") + " --out " + Path("rec") +
-                             " --seconds 1");
+                             " --seconds 3");
   // `record` says so (exit 1), and keeps what the others delivered.
   EXPECT_EQ(rec.code, 1) << rec.out << rec.err;
   EXPECT_NE(rec.err.find("a camera delivered no frame"), std::string::npos) << rec.err;
@@ -179,11 +181,11 @@ TEST_F(RecordCliTest, CameraWithoutFramesReplaysAsOneThatNeverDelivers) {
   ASSERT_TRUE(std::regex_search(replay.out, m,
                                 std::regex("replay: ([0-9]+) cycles .* ([0-9]+) cycles degraded")))
       << replay.out;
-  EXPECT_GE(std::stoi(m[1]), 25) << replay.out;
+  EXPECT_GE(std::stoi(m[1]), 80) << replay.out;
   EXPECT_EQ(m[1], m[2]) << replay.out;
 
   const auto daemon = testing::RunToolInNetns(
-      HG_HULLGUARDD_BIN, "--config " + Path("replay.yaml") + " --duration 1.5");
+      HG_HULLGUARDD_BIN, "--config " + Path("replay.yaml") + " --duration 2.5");
   if (daemon.code == testing::kNoNetns) GTEST_SKIP() << "no network namespace: " << daemon.err;
   EXPECT_EQ(daemon.code, 0) << daemon.err;
   EXPECT_TRUE(std::regex_search(
