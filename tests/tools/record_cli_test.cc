@@ -523,6 +523,37 @@ TEST_F(RecordCliTest, ReplayChecksTheCalibrationAndTimesOutAGapInTheRecording) {
   EXPECT_EQ(ParseTruthLine(r.out).free, 0) << r.out;
 }
 
+// A camera capturing 150 ms after the others while the person, standing for
+// a second, starts to walk: the check takes as deep only points that stayed
+// inside the body over every camera's capture time, from the speeds over
+// all of it (it took them from the frames next to the one checked, where
+// the person still stood, and reported points the walk had left as
+// published free: 5 here, a false alarm).
+TEST_F(RecordCliTest, ReplayCheckAllowsForAPersonStartingWithinTheCaptureOffsets) {
+  std::string scene = ReadFile(kScene);
+  for (const auto& [from, to] :
+       {std::pair<std::string, std::string>{"capture_offsets_ms: {cam1: 6.0, cam2: 12.0}",
+                                            "capture_offsets_ms: {cam2: 150.0}"},
+        {"      - walk: {speed: 1.5,",
+         "      - stand: {duration: 1.0}\n      - walk: {speed: 1.5,"}}) {
+    const std::size_t at = scene.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    scene.replace(at, from.size(), to);
+  }
+  std::ofstream(Path("starting.yaml")) << scene;
+  const auto synth = Hullguard("synth --scene " + Path("starting.yaml") +
+                               " --frames 75 --masks --out " + Path("rec"));
+  ASSERT_EQ(synth.code, 0) << synth.out << synth.err;
+  std::ofstream(Path("replay.yaml"))
+      << Config("{type: replay, directory: " + Path("rec") + "}", "motion: {max_speed_mps: 6}\n");
+  const auto r =
+      Hullguard("replay --config " + Path("replay.yaml") + " --recording " + Path("rec"));
+  EXPECT_EQ(r.code, 0) << r.out << r.err;
+  const TruthLine line = ParseTruthLine(r.out);
+  EXPECT_GT(line.points, 1000) << r.out;
+  EXPECT_EQ(line.free, 0) << r.out << r.err;
+}
+
 // A ground truth that puts a person where the cameras certify the space free
 // (alice moved 2 m across the cell, in every frame) fails the replay, with
 // the points named; --truth and --no-truth pick the file or skip the check.

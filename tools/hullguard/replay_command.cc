@@ -96,8 +96,10 @@ void AddSnapshot(const pipeline::OccupancySnapshot& s, Digest* d) {
 // motion that is not straight within the frame; such a point was inside the
 // body at every camera's capture time, so inside every camera's silhouette.
 // A part's speed is the fastest of the person's velocity (of the feet, from
-// the truth) and the speeds of the part's ends between this truth frame and
-// its neighbours (a swinging forearm or shin moves faster than the feet).
+// the truth) and the speeds of the part's ends between consecutive truth
+// frames over the capture times, max |offset| either way, and one frame
+// beyond (a swinging forearm or shin moves faster than the feet; a person
+// who starts to walk within them is faster there than around this frame).
 // Without offsets the truth is exactly what the cameras saw: no margin.
 //
 // No cycle is skipped. The snapshot has no background-learning state (the
@@ -192,25 +194,44 @@ class TruthCoverage {
     const sim::PersonTruth& pt = ft.people[person];
     std::array<double, sim::kNumBodyParts> speed_mps{};
     speed_mps.fill(pt.state.velocity_W.norm());
-    for (int other : {frame - 1, frame + 1}) {
-      if (other < 0 || other >= truth_frames()) continue;
-      const sim::FrameTruth& o = truth_.frames[static_cast<std::size_t>(other)];
-      const double dt_s = std::abs(o.time_s - ft.time_s);
-      if (dt_s <= 0.0) continue;
-      for (const sim::PersonTruth& q : o.people) {
-        if (q.name != pt.name) continue;
-        for (std::size_t j = 0; j < margin.size(); ++j) {
-          const sim::BodyCapsule& a = pt.state.parts[j];
-          const sim::BodyCapsule& b = q.state.parts[j];
-          speed_mps[j] = std::max(
-              {speed_mps[j], (a.a_W - b.a_W).norm() / dt_s, (a.b_W - b.b_W).norm() / dt_s});
-        }
+    // Every step between truth frames that overlaps the cameras' capture
+    // times (max |offset| either way): a person starting to walk within
+    // them moves faster there than around this frame.
+    const auto near = [&](int f) {
+      return f >= 0 && f < truth_frames() &&
+             std::abs(truth_.frames[static_cast<std::size_t>(f)].time_s - ft.time_s) <=
+                 max_offset_s_;
+    };
+    int first = frame, last = frame;
+    while (near(first - 1)) --first;
+    while (near(last + 1)) ++last;
+    first = std::max(0, first - 1);  // The steps into and out of the window.
+    last = std::min(truth_frames() - 1, last + 1);
+    for (int f = first; f < last; ++f) {
+      const sim::FrameTruth& from = truth_.frames[static_cast<std::size_t>(f)];
+      const sim::FrameTruth& to = truth_.frames[static_cast<std::size_t>(f + 1)];
+      const double dt_s = std::abs(to.time_s - from.time_s);
+      const sim::PersonTruth* p = FindPerson(from, pt.name);
+      const sim::PersonTruth* q = FindPerson(to, pt.name);
+      if (dt_s <= 0.0 || p == nullptr || q == nullptr) continue;
+      for (std::size_t j = 0; j < margin.size(); ++j) {
+        const sim::BodyCapsule& a = p->state.parts[j];
+        const sim::BodyCapsule& b = q->state.parts[j];
+        speed_mps[j] =
+            std::max({speed_mps[j], (a.a_W - b.a_W).norm() / dt_s, (a.b_W - b.b_W).norm() / dt_s});
       }
     }
     for (std::size_t j = 0; j < margin.size(); ++j) {
       margin[j] = speed_mps[j] * max_offset_s_ + kMarginM;
     }
     return margin;
+  }
+
+  static const sim::PersonTruth* FindPerson(const sim::FrameTruth& frame, const std::string& name) {
+    for (const sim::PersonTruth& p : frame.people) {
+      if (p.name == name) return &p;
+    }
+    return nullptr;
   }
 
   // The published cell holding p_W, nullopt outside the bounds.
