@@ -88,9 +88,11 @@ class CameraHealthMonitor {
   std::vector<std::uint8_t> reference_;
   std::vector<std::uint32_t> reference_edges_;  // Sample indices of reference edges.
   int reference_count_ = 0;
-  /// Frames a repeat is looked for among: a driver may cycle through its few
-  /// buffers (V4L2 drivers commonly hold four).
-  static constexpr int kRecentFrames = 4;
+  /// Frames a repeat is looked for among: a driver may cycle through its
+  /// buffers, stale ones again and again (the GigE source holds 8, a V4L2
+  /// source up to 32: `buffers`, which a driver may raise). A replayed
+  /// recording looping over fewer frames looks the same, and is dropped so.
+  static constexpr int kRecentFrames = 32;
   std::array<std::uint64_t, kRecentFrames> recent_{};  // Sample hashes, a ring.
   int recent_count_ = 0;
   int recent_next_ = 0;

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <memory>
+#include <vector>
 
 #include <Eigen/Geometry>
 
@@ -115,6 +116,25 @@ TEST(CameraHealthTest, FrozenBlackAndSaturatedImages) {
     EXPECT_FALSE(cycling.repeated()) << i;
   }
   EXPECT_EQ(cycling.fault(), CameraFault::kNone);
+
+  // As many stale buffers as a GigE source (8) or a V4L2 one at most (32)
+  // holds: with a look-back of four frames, a cycle of five or more went
+  // unnoticed, and the empty cell of the stale buffers freed the person.
+  for (const int buffers : {5, 8, 32}) {
+    SCOPED_TRACE(buffers);
+    CameraHealthMonitor many;
+    std::vector<Frame> ring;
+    for (int i = 0; i < buffers; ++i) ring.push_back(camera.At(100 + i));
+    for (const Frame& f : ring) EXPECT_EQ(many.Check(f), CameraFault::kNone);
+    fault = CameraFault::kNone;
+    frames = 0;
+    while (fault == CameraFault::kNone && frames < 60) {
+      fault = many.Check(ring[static_cast<std::size_t>(frames % buffers)]);
+      EXPECT_TRUE(many.repeated()) << frames;
+      ++frames;
+    }
+    EXPECT_EQ(fault, CameraFault::kFrozen);
+  }
 
   Frame black = camera.At(14);
   std::fill(black.rgb.pixels.begin(), black.rgb.pixels.end(), 3);
