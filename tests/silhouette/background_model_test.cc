@@ -834,6 +834,19 @@ TEST(BackgroundModelTest, ClippedPixelsAreForeground) {
   EXPECT_EQ(mask.At(5, 5), 0);
 }
 
+// Adds `delta` to every channel of the square [20, 30) x [20, 30) of `frame`
+// (something passing, or a person, there).
+void PaintSquare(common::ImageRgb8* frame, int delta) {
+  for (int v = 20; v < 30; ++v) {
+    for (int u = 20; u < 30; ++u) {
+      for (int c = 0; c < 3; ++c) {
+        std::uint8_t& p = frame->Pixel(u, v)[c];
+        p = static_cast<std::uint8_t>(std::clamp(p + delta, 0, 255));
+      }
+    }
+  }
+}
+
 // Something passing through the view while the cell is learned (a robot arm)
 // biases the mean and the noise where it passed, raising the threshold there
 // above the one promised: a person of a contrast just over the threshold was
@@ -848,25 +861,15 @@ TEST(BackgroundModelTest, WhatPassedWhileLearningLeavesAlwaysForeground) {
   options.compensate_gain = false;
   BackgroundModel model(kW, kH, options);
   common::ImageU8 mask;
-  auto paint = [](common::ImageRgb8* frame, int delta) {
-    for (int v = 20; v < 30; ++v) {
-      for (int u = 20; u < 30; ++u) {
-        for (int c = 0; c < 3; ++c) {
-          std::uint8_t& p = frame->Pixel(u, v)[c];
-          p = static_cast<std::uint8_t>(std::clamp(p + delta, 0, 255));
-        }
-      }
-    }
-  };
   for (int i = 0; i < options.learn_frames; ++i) {
     common::ImageRgb8 frame = Observe(base, 1.0, 2.0, &rng);
-    if (i == 10) paint(&frame, 100);  // The arm, for one frame.
+    if (i == 10) PaintSquare(&frame, 100);  // The arm, for one frame.
     model.Apply(frame, &mask);
   }
   ASSERT_FALSE(model.learning());
   // A person just over the threshold where the arm passed.
   common::ImageRgb8 person = Observe(base, 1.0, 2.0, &rng);
-  paint(&person, options.min_threshold + 6);
+  PaintSquare(&person, options.min_threshold + 6);
   model.Apply(person, &mask);
   for (int v = 20; v < 30; ++v) {
     for (int u = 20; u < 30; ++u) {
@@ -929,24 +932,14 @@ TEST(BackgroundModelTest, APersonLeavingEarlyInALongLearningLeavesAlwaysForegrou
   options.learn_frames = 200;
   BackgroundModel model(kW, kH, options);
   common::ImageU8 mask;
-  auto paint = [](common::ImageRgb8* frame, int delta) {
-    for (int v = 20; v < 30; ++v) {
-      for (int u = 20; u < 30; ++u) {
-        for (int c = 0; c < 3; ++c) {
-          std::uint8_t& p = frame->Pixel(u, v)[c];
-          p = static_cast<std::uint8_t>(std::clamp(p + delta, 0, 255));
-        }
-      }
-    }
-  };
   for (int i = 0; i < options.learn_frames; ++i) {
     common::ImageRgb8 frame = Observe(base, 1.0, 2.0, &rng);
-    if (i < 20) paint(&frame, -100);  // Someone in dark clothes, then gone.
+    if (i < 20) PaintSquare(&frame, -100);  // Someone in dark clothes, then gone.
     model.Apply(frame, &mask);
   }
   ASSERT_FALSE(model.learning());
   common::ImageRgb8 person = Observe(base, 1.0, 2.0, &rng);
-  paint(&person, -(options.min_threshold + 6));
+  PaintSquare(&person, -(options.min_threshold + 6));
   model.Apply(person, &mask);
   for (int v = 20; v < 30; ++v) {
     for (int u = 20; u < 30; ++u) {

@@ -151,6 +151,15 @@ class CarveCliTest : public ::testing::Test {
     return "carve --cameras " + Path("cams.yaml") + " --masks" + Masks() +
            " --bounds 0 0 0 2 2 2 --depth 6";
   }
+  // `hullguard carve` of one mask of a 64 x 48 camera looking down at the
+  // cell's centre, queried there: "1 1 1 STATE".
+  ProcessResult CarveLookingDown(const std::string& mask) const {
+    std::ofstream(Path("down.yaml")) << "cameras:\n"
+                                     << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
+    std::ofstream(Path("q.txt")) << "1 1 1\n";
+    return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
+                     " --bounds 0 0 0 2 2 2 --depth 4 --query " + Path("q.txt"));
+  }
   fs::path dir_;
   testing::RandomScene scene_;
 };
@@ -292,13 +301,7 @@ TEST_F(CarveCliTest, ColourMasksCountTheirBrightestChannel) {
 // a PNG's transparency key (a keyed-out background dropped, the mask read as
 // drawn: refused like an alpha channel).
 TEST_F(CarveCliTest, PgmMaxvalIsScaledAndPngColourKeysAreRefused) {
-  std::ofstream(Path("down.yaml")) << "cameras:\n"
-                                   << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
-  std::ofstream(Path("q.txt")) << "1 1 1\n";
-  auto carve = [&](const std::string& mask) {
-    return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
-                     " --bounds 0 0 0 2 2 2 --depth 4 --query " + Path("q.txt"));
-  };
+  auto carve = [&](const std::string& mask) { return CarveLookingDown(mask); };
   for (const int maxval : {1, 15, 255}) {
     SCOPED_TRACE(maxval);
     const std::string name = "max" + std::to_string(maxval) + ".pgm";
@@ -347,13 +350,7 @@ TEST_F(CarveCliTest, PgmMaxvalIsScaledAndPngColourKeysAreRefused) {
 // read those pixels as black, background, and the person in them free. It
 // is refused; a palette mask within its palette reads as drawn.
 TEST_F(CarveCliTest, PaletteMasksIndexingPastThePaletteAreRefused) {
-  std::ofstream(Path("down.yaml")) << "cameras:\n"
-                                   << LookAtCameraYaml("down", 64, 48, "[1, 1, 5]", "[1, 1, 1]");
-  std::ofstream(Path("q.txt")) << "1 1 1\n";
-  auto carve = [&](const std::string& mask) {
-    return Hullguard("carve --cameras " + Path("down.yaml") + " --masks " + Path(mask) +
-                     " --bounds 0 0 0 2 2 2 --depth 4 --query " + Path("q.txt"));
-  };
+  auto carve = [&](const std::string& mask) { return CarveLookingDown(mask); };
   const std::pair<const char*, std::string (*)(int, int, unsigned char)> formats[] = {
       {"png", PalettePng}, {"bmp", PaletteBmp}};
   for (const auto& [extension, make] : formats) {
