@@ -4,6 +4,7 @@
 /// camera that moved (bumped) since its reference view was taken.
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
@@ -74,6 +75,13 @@ class CameraHealthMonitor {
   /// Share of the reference edges found in the last frame (1 before the
   /// reference exists).
   [[nodiscard]] double edges_kept() const { return edges_kept_; }
+  /// Whether the reference view has been taken (after reference_frames).
+  [[nodiscard]] bool has_reference() const { return reference_count_ >= options_.reference_frames; }
+  /// Edges of the reference view: a view with few (a blank wall, a view
+  /// covered while the reference was taken) cannot be found moved.
+  [[nodiscard]] std::size_t reference_edges() const { return reference_edges_.size(); }
+  /// Fewer reference edges than this: the camera cannot be checked for a move.
+  static constexpr std::size_t kFewEdges = 16;
   /// Forgets the reference and every fault (after the camera was re-aimed).
   void Reset();
 

@@ -266,6 +266,16 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     // frames are dropped and fusion counts it as seeing nothing.
     const capture::CameraFault fault = c.health_monitor.Check(frame);
     c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
+    if (!c.reference_logged && c.health_monitor.has_reference()) {
+      c.reference_logged = true;  // Once, when the reference view is taken.
+      if (c.health_monitor.reference_edges() < capture::CameraHealthMonitor::kFewEdges) {
+        log::Warn(
+            "{}: its view has {} strong edges (a blank wall, or covered at start-up): a move of "
+            "this camera cannot be found; aim it at some structure, or check its calibration "
+            "by other means",
+            c.model.name, c.health_monitor.reference_edges());
+      }
+    }
     if (fault != capture::CameraFault::kNone) return;
     // A repeat of the last frame is not a new view: dropped, so the camera's
     // age keeps growing (dilation, then stale at its timeout) until frozen.

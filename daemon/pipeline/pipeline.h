@@ -238,6 +238,7 @@ class Pipeline {
     std::atomic<std::int64_t> heavy_since_ns{-1};
     // Silhouette work (one worker at a time).
     capture::CameraHealthMonitor health_monitor;
+    bool reference_logged = false;  // Whether a view without edges was reported.
     common::ImageU8 foreground;
     silhouette::DilateScratch dilate_scratch;                 // DilateSquare of the foreground.
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.

@@ -7,6 +7,7 @@
 
 #include <cmath>
 #include <memory>
+#include <random>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -143,6 +144,23 @@ TEST(CameraHealthTest, FrozenBlackAndSaturatedImages) {
   std::fill(white.rgb.pixels.begin(), white.rgb.pixels.end(), 252);
   EXPECT_EQ(monitor.Check(white), CameraFault::kSaturated);
   EXPECT_EQ(monitor.Check(camera.At(16)), CameraFault::kNone);
+
+  // A blank view (a plain wall) has no edges to find a move by: the
+  // pipeline warns of it once the reference is taken. The cell has plenty.
+  CameraHealthMonitor blank;
+  std::mt19937 rng(3);
+  for (int i = 0; i < CameraHealthOptions{}.reference_frames; ++i) {
+    EXPECT_FALSE(blank.has_reference());
+    Frame wall;
+    wall.kind = FrameKind::kMono;
+    wall.grey = common::ImageU8(320, 180, 0);
+    for (auto& p : wall.grey.pixels) p = static_cast<std::uint8_t>(120 + rng() % 5);
+    blank.Check(wall);
+  }
+  EXPECT_TRUE(blank.has_reference());
+  EXPECT_LT(blank.reference_edges(), CameraHealthMonitor::kFewEdges);
+  EXPECT_TRUE(monitor.has_reference());
+  EXPECT_GT(monitor.reference_edges(), 10 * CameraHealthMonitor::kFewEdges);
 
   // Grey (Mono8) images are checked the same way.
   Frame mono;
