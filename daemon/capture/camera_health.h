@@ -80,6 +80,11 @@ class CameraHealthMonitor {
   /// Edges of the reference view: a view with few (a blank wall, a view
   /// covered while the reference was taken) cannot be found moved.
   [[nodiscard]] std::size_t reference_edges() const { return reference_edges_.size(); }
+  /// Frames a repeat is looked for among: a driver may cycle through its
+  /// buffers, stale ones again and again (the GigE source holds 8, a V4L2
+  /// source up to 32: `buffers`, which a driver may raise). A replayed
+  /// recording looping over fewer frames looks the same, and is dropped so.
+  static constexpr int kRecentFrames = 32;
   /// Fewer reference edges than this: the camera cannot be checked for a move.
   static constexpr std::size_t kFewEdges = 16;
   /// Forgets the reference and every fault (after the camera was re-aimed).
@@ -96,11 +101,6 @@ class CameraHealthMonitor {
   std::vector<std::uint8_t> reference_;
   std::vector<std::uint32_t> reference_edges_;  // Sample indices of reference edges.
   int reference_count_ = 0;
-  /// Frames a repeat is looked for among: a driver may cycle through its
-  /// buffers, stale ones again and again (the GigE source holds 8, a V4L2
-  /// source up to 32: `buffers`, which a driver may raise). A replayed
-  /// recording looping over fewer frames looks the same, and is dropped so.
-  static constexpr int kRecentFrames = 32;
   std::array<std::uint64_t, kRecentFrames> recent_{};  // Sample hashes, a ring.
   int recent_count_ = 0;
   int recent_next_ = 0;

@@ -28,6 +28,7 @@
 #include <gtest/gtest.h>
 
 #include "capture/aravis_source.h"
+#include "capture/camera_health.h"
 #include "hullguard.h"
 #include "publish/dds.h"
 #include "publish/dds_publisher.h"
@@ -115,11 +116,12 @@ std::string ConfigYaml() {
 using testing::ReadFile;
 
 // Pre-rendered frames of every camera, the empty cell and the cell with its
-// people, each a short loop of sensor-noise variants (so no camera looks
-// frozen), served by the fake cameras.
+// people, each a loop of sensor-noise variants, served by the fake cameras:
+// more of them than the frames a repeat is looked for among
+// (CameraHealthMonitor::kRecentFrames), so that no camera looks frozen.
 class CellFrames {
  public:
-  static constexpr int kVariants = 8;
+  static constexpr int kVariants = capture::CameraHealthMonitor::kRecentFrames + 8;
 
   explicit CellFrames(const sim::Scene& scene) : frames_(scene.cameras.size()) {
     sim::Scene empty = scene;
