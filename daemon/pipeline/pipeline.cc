@@ -34,7 +34,38 @@ double MsSince(SteadyClock::time_point t) {
   return std::chrono::duration<double, std::milli>(SteadyClock::now() - t).count();
 }
 
+/// A kept background's camera: its name, size, intrinsics, distortion and
+/// pose, rounded (1e-3 px, 1e-6 for the rest) so that the last bits of a
+/// pose computed from a look-at point do not matter. FNV-1a.
+std::uint64_t CalibrationId(const geometry::CameraModel& m) {
+  std::uint64_t hash = 0xcbf29ce484222325ULL;
+  const auto add = [&hash](const void* data, std::size_t size) {
+    const auto* p = static_cast<const unsigned char*>(data);
+    for (std::size_t i = 0; i < size; ++i) hash = (hash ^ p[i]) * 0x100000001b3ULL;
+  };
+  const auto add_rounded = [&add](double v, double scale) {
+    const long long q = std::llround(v * scale);
+    add(&q, sizeof(q));
+  };
+  add(m.name.data(), m.name.size());
+  add(&m.width, sizeof(m.width));
+  add(&m.height, sizeof(m.height));
+  for (int i = 0; i < 9; ++i) add_rounded(m.K(i / 3, i % 3), 1e3);
+  for (const double d : m.distortion) add_rounded(d, 1e6);
+  for (int i = 0; i < 9; ++i) add_rounded(m.R_CW(i / 3, i % 3), 1e6);
+  for (int i = 0; i < 3; ++i) add_rounded(m.t_CW[i], 1e6);
+  return hash;
+}
+
 }  // namespace
+
+Pipeline::CameraRuntime::CameraRuntime(geometry::CameraModel m,
+                                       std::unique_ptr<capture::CameraSource> s, int timeout)
+    : model(std::move(m)),
+      source(std::move(s)),
+      timeout_ms(timeout),
+      quadtree(model.width, model.height),
+      calibration_id(CalibrationId(model)) {}
 
 Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> cameras,
                    const std::vector<geometry::TriangleMesh>& obstacles, Consumer consumer,
@@ -292,7 +323,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       const int channels = frame.kind == capture::FrameKind::kRgb ? 3 : 1;
       const bool taken_up = options_.background_start != Start::kRelearn &&
                             !options_.background_dir.empty() &&
-                            c.background->Load(file, &error, channels);
+                            c.background->Load(file, &error, channels, c.calibration_id);
       if (options_.background_start == Start::kRelearn) {
         log::Info("{}: learning the background afresh, to be kept in {}", c.model.name, file);
       } else if (taken_up) {
@@ -339,7 +370,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
       std::error_code ec;
       std::filesystem::create_directories(options_.background_dir, ec);
       const std::string file = BackgroundFile(camera);
-      const bool saved = c.background->Save(file, &error);
+      const bool saved = c.background->Save(file, &error, c.calibration_id);
       if (saved) {
         log::Info("{}: background learned, saved to {}", c.model.name, file);
       } else {

@@ -257,11 +257,9 @@ class Pipeline {
     double fps = 0.0;
     bool fps_windowed = false;        // A whole one-second window has been counted.
     std::int64_t first_stamp_ns = 0;  // Capture stamp of the first frame taken.
-    CameraRuntime(geometry::CameraModel m, std::unique_ptr<capture::CameraSource> s, int timeout)
-        : model(std::move(m)),
-          source(std::move(s)),
-          timeout_ms(timeout),
-          quadtree(model.width, model.height) {}
+    /// The camera and its calibration, in its kept background's file.
+    std::uint64_t calibration_id = 0;
+    CameraRuntime(geometry::CameraModel m, std::unique_ptr<capture::CameraSource> s, int timeout);
   };
 
   /// A silhouette worker and the cameras it serves.

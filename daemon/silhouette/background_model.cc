@@ -299,6 +299,7 @@ struct SavedHeader {
   std::int32_t height = 0;
   std::int32_t channels = 0;
   std::int32_t deviation_frames = 0;
+  std::uint64_t camera_id = 0;  // The camera and its calibration (Save()).
   std::uint64_t checksum = 0;
 };
 
@@ -321,11 +322,13 @@ void AddHeader(const SavedHeader& header, Fnv1a* sum) {
        {header.width, header.height, header.channels, header.deviation_frames}) {
     sum->Add(&v, sizeof(v));
   }
+  sum->Add(&header.camera_id, sizeof(header.camera_id));
 }
 
 }  // namespace
 
-bool BackgroundModel::Save(const std::string& path, std::string* error) const {
+bool BackgroundModel::Save(const std::string& path, std::string* error,
+                           std::uint64_t camera_id) const {
   HG_CHECK(!learning() && channels_ > 0);
   const auto pixels = static_cast<std::size_t>(width_) * height_;
   const std::size_t values = pixels * static_cast<std::size_t>(channels_);
@@ -340,6 +343,7 @@ bool BackgroundModel::Save(const std::string& path, std::string* error) const {
   header.height = height_;
   header.channels = channels_;
   header.deviation_frames = deviation_frames_;
+  header.camera_id = camera_id;
   Fnv1a sum;
   AddHeader(header, &sum);
   sum.Add(mean_high_.data(), values);
@@ -374,7 +378,8 @@ bool BackgroundModel::Save(const std::string& path, std::string* error) const {
   return true;
 }
 
-bool BackgroundModel::Load(const std::string& path, std::string* error, int channels) {
+bool BackgroundModel::Load(const std::string& path, std::string* error, int channels,
+                           std::uint64_t camera_id) {
   std::ifstream in(path, std::ios::binary);
   if (!in) {
     *error = path + ": cannot open";
@@ -427,6 +432,12 @@ bool BackgroundModel::Load(const std::string& path, std::string* error, int chan
   sum.Add(noise.data(), noise.size() * sizeof(std::uint16_t));
   if (!in || in.peek() != std::char_traits<char>::eof() || sum.value() != header.checksum) {
     *error = path + ": damaged (truncated, too long or checksum mismatch)";
+    return false;
+  }
+  if (header.camera_id != camera_id) {
+    *error = path +
+             ": taught for another camera, or before this one was calibrated anew (its "
+             "view may have moved); teach the background again";
     return false;
   }
   Reset();

@@ -104,9 +104,11 @@ class BackgroundModel {
   /// pixel its noise) to `path`, through a temporary file renamed over it,
   /// so that a restart can take it up instead of learning a cell that may no
   /// longer be empty. Call it right after learning ended: the means saved are
-  /// the empty cell's. Returns false with *error set when it cannot.
-  /// Precondition: !learning().
-  bool Save(const std::string& path, std::string* error) const;
+  /// the empty cell's. `camera_id` names the camera and its calibration
+  /// (the pipeline hashes its name, size, intrinsics, distortion and pose);
+  /// Load() takes the file up for that camera only.
+  /// Returns false with *error set when it cannot. Precondition: !learning().
+  bool Save(const std::string& path, std::string* error, std::uint64_t camera_id = 0) const;
 
   /// Takes up a background written by Save() for a camera of this size: the
   /// model is then learned, with thresholds from its own options (which may
@@ -115,8 +117,10 @@ class BackgroundModel {
   /// file cannot be read, is of another size or is damaged (checksum), or
   /// holds another format than `channels` (3 RGB, 1 grey; 0: either): a
   /// frame of the other format would make the model forget it and learn
-  /// afresh, with whoever is in view.
-  bool Load(const std::string& path, std::string* error, int channels = 0);
+  /// afresh, with whoever is in view; or was saved for another `camera_id`
+  /// (another camera, or this one calibrated anew: its view has moved).
+  bool Load(const std::string& path, std::string* error, int channels = 0,
+            std::uint64_t camera_id = 0);
 
   /// The background of pixel (u, v), channel c (0 for grey), in grey levels at
   /// the reference illumination. For tests and diagnostics.

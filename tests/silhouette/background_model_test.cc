@@ -456,6 +456,19 @@ TEST(BackgroundModelTest, SavedBackgroundIsTakenUpAfterARestart) {
   ASSERT_TRUE(other_options.Load(path, &error)) << error;
   EXPECT_EQ(other_options.ThresholdAt(kWidth / 2, kHeight / 2), 40);
 
+  // Saved for one camera (and its calibration), taken up by that one only:
+  // another camera's file, or one of this camera before it was calibrated
+  // anew, is refused.
+  const std::string own = path + ".cam";
+  ASSERT_TRUE(learned.Save(own, &error, 7)) << error;
+  BackgroundModel same_camera(kWidth, kHeight, options);
+  EXPECT_TRUE(same_camera.Load(own, &error, 0, 7)) << error;
+  BackgroundModel other_camera(kWidth, kHeight, options);
+  EXPECT_FALSE(other_camera.Load(own, &error, 0, 8));
+  EXPECT_NE(error.find("taught for another camera"), std::string::npos) << error;
+  EXPECT_TRUE(other_camera.learning());
+  std::remove(own.c_str());
+
   // Another size, a damaged file, no file: refused, still learning.
   BackgroundModel smaller(kWidth / 2, kHeight, options);
   EXPECT_FALSE(smaller.Load(path, &error));
