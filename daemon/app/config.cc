@@ -1313,9 +1313,6 @@ void CheckRecordingForConfig(const Config& config, const std::string& recording)
       }
       problems.push_back(which + problem);
     }
-    // A camera without frames (one the black box dumped because it was lost)
-    // replays as a camera that never delivers; synth recordings always hold
-    // frames.
   }
   if (problems.empty()) return;
   std::string message = cameras_file + ": the recording does not match the config's cameras: ";

@@ -273,8 +273,9 @@ struct Config {
 /// replayed with `config`'s cameras: its cameras.yaml holds each config
 /// camera's recorded camera (RecordedCameraName) with the same size,
 /// intrinsics, distortion and pose (a recording of another rig, or cameras
-/// swapped, would carve each silhouette with another camera's pose), and
-/// each has at least one frame.
+/// swapped, would carve each silhouette with another camera's pose). A
+/// camera without frames (one the black box dumped because it was lost)
+/// replays as a camera that never delivers.
 /// @throws common::ConfigError naming the recording's file and every problem.
 void CheckRecordingForConfig(const Config& config, const std::string& recording);
 

@@ -26,6 +26,7 @@
 #include "common/limits.h"
 #include "common/yaml_file.h"
 #include "geometry/camera_yaml.h"
+#include "silhouette/mask_io.h"
 
 namespace hg::capture {
 namespace {
@@ -416,19 +417,9 @@ bool DecodeRecordedFrame(const RecordingCamera& recording, std::size_t index,
   // would read as drawn, not as meant. Unusable, as a damaged one.
   if (facts.png_colour_key) return false;
   // Pixels that index past a palette decode as black without a word: damage.
-  const std::string_view bytes(reinterpret_cast<const char*>(encoded.data), encoded.total());
-  if (const std::optional<std::string> white = common::WithPaletteFilled(bytes, 255)) {
-    const std::optional<std::string> black = common::WithPaletteFilled(bytes, 0);
-    const auto decode = [](const std::string& b) {
-      return cv::imdecode(
-          cv::Mat(1, static_cast<int>(b.size()), CV_8UC1, const_cast<char*>(b.data())),
-          cv::IMREAD_UNCHANGED);
-    };
-    const cv::Mat w = decode(*white), k = decode(*black);
-    if (w.empty() || w.size() != k.size() || w.type() != k.type() ||
-        cv::norm(w, k, cv::NORM_INF) != 0.0) {
-      return false;
-    }
+  if (silhouette::IndexesPastItsPalette(
+          std::string_view(reinterpret_cast<const char*>(encoded.data), encoded.total()))) {
+    return false;
   }
   if (facts.png_alpha) {
     // The same for transparent pixels of an alpha channel (opaque ones are

@@ -2,6 +2,9 @@
 
 #include <cstring>
 #include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -22,6 +25,7 @@ cv::Mat Decode(const std::string& path, int flags) {
     throw common::ConfigError(path + ": not an image format read reliably (use " +
                               common::kTrustedImageFormats + ")");
   }
+  if (IndexesPastItsPalette(bytes)) return {};
   const cv::Mat encoded(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data());
   try {
     return cv::imdecode(encoded, flags);
@@ -31,6 +35,23 @@ cv::Mat Decode(const std::string& path, int flags) {
 }
 
 }  // namespace
+
+bool IndexesPastItsPalette(std::string_view encoded) {
+  std::optional<std::string> white = common::WithPaletteFilled(encoded, 255);
+  if (!white) return false;
+  std::optional<std::string> black = common::WithPaletteFilled(encoded, 0);
+  const auto decode = [](std::string& bytes) {
+    try {
+      return cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, bytes.data()),
+                          cv::IMREAD_UNCHANGED);
+    } catch (const cv::Exception&) {
+      return cv::Mat();
+    }
+  };
+  const cv::Mat w = decode(*white), k = decode(*black);
+  return w.empty() || w.size() != k.size() || w.type() != k.type() ||
+         cv::norm(w, k, cv::NORM_INF) != 0.0;
+}
 
 common::ImageU8 ReadGreyImage(const std::string& path) {
   // ANYDEPTH keeps a 16-bit image 16-bit, refused below: a plain GRAYSCALE read

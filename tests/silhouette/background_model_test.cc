@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <new>
 #include <random>
 #include <string>
@@ -860,6 +861,31 @@ void PaintSquare(common::ImageRgb8* frame, int delta) {
   }
 }
 
+// Has `model` learn the view `base` (with noise), where learning frame i has
+// `painted(i)` added in the square (0: nothing), then shows it a person of
+// contrast `person` in the square: the square must be foreground and its
+// pixels unreliable (threshold -1).
+void LearnThenShowAPersonInTheSquare(BackgroundModel* model, const common::ImageRgb8& base,
+                                     std::mt19937_64* rng, const std::function<int(int)>& painted,
+                                     int person) {
+  common::ImageU8 mask;
+  for (int i = 0; model->learning() && i < 100000; ++i) {
+    common::ImageRgb8 frame = Observe(base, 1.0, 2.0, rng);
+    if (const int delta = painted(i); delta != 0) PaintSquare(&frame, delta);
+    model->Apply(frame, &mask);
+  }
+  ASSERT_FALSE(model->learning());
+  common::ImageRgb8 frame = Observe(base, 1.0, 2.0, rng);
+  PaintSquare(&frame, person);
+  model->Apply(frame, &mask);
+  for (int v = 20; v < 30; ++v) {
+    for (int u = 20; u < 30; ++u) {
+      ASSERT_EQ(mask.At(u, v), 255) << u << "," << v;
+      EXPECT_EQ(model->ThresholdAt(u, v), -1) << u << "," << v;
+    }
+  }
+}
+
 // Something passing through the view while the cell is learned (a robot arm)
 // biases the mean and the noise where it passed, raising the threshold there
 // above the one promised: a person of a contrast just over the threshold was
@@ -873,23 +899,9 @@ TEST(BackgroundModelTest, WhatPassedWhileLearningLeavesAlwaysForeground) {
   BackgroundModelOptions options;
   options.compensate_gain = false;
   BackgroundModel model(kW, kH, options);
-  common::ImageU8 mask;
-  for (int i = 0; i < options.learn_frames; ++i) {
-    common::ImageRgb8 frame = Observe(base, 1.0, 2.0, &rng);
-    if (i == 10) PaintSquare(&frame, 100);  // The arm, for one frame.
-    model.Apply(frame, &mask);
-  }
-  ASSERT_FALSE(model.learning());
-  // A person just over the threshold where the arm passed.
-  common::ImageRgb8 person = Observe(base, 1.0, 2.0, &rng);
-  PaintSquare(&person, options.min_threshold + 6);
-  model.Apply(person, &mask);
-  for (int v = 20; v < 30; ++v) {
-    for (int u = 20; u < 30; ++u) {
-      ASSERT_EQ(mask.At(u, v), 255) << u << "," << v;
-      EXPECT_EQ(model.ThresholdAt(u, v), -1) << u << "," << v;
-    }
-  }
+  // The arm, for one frame; a person just over the threshold where it passed.
+  LearnThenShowAPersonInTheSquare(
+      &model, base, &rng, [](int i) { return i == 10 ? 100 : 0; }, options.min_threshold + 6);
   EXPECT_LT(model.foreground_fraction(), 0.05);  // Only there.
   // Saved and taken up: still unreliable there, and nowhere else.
   const std::string path = ::testing::TempDir() + "hg_bg_passed.bin";
@@ -944,22 +956,9 @@ TEST(BackgroundModelTest, APersonLeavingEarlyInALongLearningLeavesAlwaysForegrou
   options.compensate_gain = false;
   options.learn_frames = 200;
   BackgroundModel model(kW, kH, options);
-  common::ImageU8 mask;
-  for (int i = 0; i < options.learn_frames; ++i) {
-    common::ImageRgb8 frame = Observe(base, 1.0, 2.0, &rng);
-    if (i < 20) PaintSquare(&frame, -100);  // Someone in dark clothes, then gone.
-    model.Apply(frame, &mask);
-  }
-  ASSERT_FALSE(model.learning());
-  common::ImageRgb8 person = Observe(base, 1.0, 2.0, &rng);
-  PaintSquare(&person, -(options.min_threshold + 6));
-  model.Apply(person, &mask);
-  for (int v = 20; v < 30; ++v) {
-    for (int u = 20; u < 30; ++u) {
-      ASSERT_EQ(mask.At(u, v), 255) << u << "," << v;
-      EXPECT_EQ(model.ThresholdAt(u, v), -1) << u << "," << v;
-    }
-  }
+  // Someone in dark clothes, then gone; later a person in the promised contrast.
+  LearnThenShowAPersonInTheSquare(
+      &model, base, &rng, [](int i) { return i < 20 ? -100 : 0; }, -(options.min_threshold + 6));
   // Elsewhere the promised threshold, and the empty cell background.
   EXPECT_EQ(model.ThresholdAt(5, 5), options.min_threshold);
   EXPECT_LT(model.foreground_fraction(), 0.05);

@@ -10,7 +10,6 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
-#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -26,6 +25,7 @@
 #include "hullguard/commands.h"
 #include "octree/knowledge_filter.h"
 #include "octree/ply.h"
+#include "silhouette/mask_io.h"
 
 namespace hg::tools {
 namespace {
@@ -106,24 +106,15 @@ common::ImageU8 ReadMask(const std::string& path) {
     throw common::ConfigError(
         path + ": not a readable 8-bit image (16-bit, truncated, damaged or not an image)");
   }
-  if (const std::optional<std::string> filled = common::WithPaletteFilled(bytes, 255)) {
+  bool past_palette = false;
+  {
     // A pixel whose index lies past the palette decodes as black, background:
     // a damaged mask would free the space of a person.
-    cv::Mat white;
-    {
-      const SilencedStderr quiet;
-      try {
-        white = cv::imdecode(cv::Mat(1, static_cast<int>(filled->size()), CV_8UC1,
-                                     const_cast<char*>(filled->data())),
-                             cv::IMREAD_UNCHANGED);
-      } catch (const cv::Exception&) {
-        white = cv::Mat();
-      }
-    }
-    if (white.size() != m.size() || white.type() != m.type() ||
-        cv::norm(white, m, cv::NORM_INF) != 0.0) {
-      throw common::ConfigError(path + ": damaged: pixels index colours its palette does not have");
-    }
+    const SilencedStderr quiet;
+    past_palette = silhouette::IndexesPastItsPalette(bytes);
+  }
+  if (past_palette) {
+    throw common::ConfigError(path + ": damaged: pixels index colours its palette does not have");
   }
   const int channels = m.channels();
   const common::ImageHeaderFacts facts = common::InspectImageHeader(bytes);
