@@ -28,6 +28,9 @@ const char* ToString(CameraFault fault) {
 
 CameraHealthMonitor::CameraHealthMonitor(CameraHealthOptions options) : options_(options) {
   options_.sample_step_px = std::max(1, options_.sample_step_px);
+  // ViewRegistration sums up to 255 frames.
+  options_.reference_frames = std::clamp(options_.reference_frames, 1, 255);
+  options_.shift_check_every = std::max(1, options_.shift_check_every);
 }
 
 void CameraHealthMonitor::Reset() {
@@ -38,6 +41,11 @@ void CameraHealthMonitor::Reset() {
   recent_count_ = 0;
   recent_next_ = 0;
   moved_run_ = 0;
+  registration_.Reset();
+  frames_since_check_ = 0;
+  shift_run_ = 0;
+  misalignment_px_ = -1.0;
+  shifted_ = false;
   moved_ = false;
   edges_kept_ = 1.0;
   fault_ = CameraFault::kNone;
@@ -113,7 +121,9 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
   if (!moved_ && mean >= options_.dark_level && mean <= options_.saturated_level) {
     if (reference_count_ < options_.reference_frames) {
       for (std::size_t i = 0; i < n; ++i) reference_sum_[i] += img[i];
+      registration_.Accumulate(frame);
       if (++reference_count_ == options_.reference_frames) {
+        registration_.TakeReference();
         for (std::size_t i = 0; i < n; ++i) {
           reference_[i] = static_cast<std::uint8_t>(reference_sum_[i] / reference_count_);
         }
@@ -138,6 +148,17 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
       edges_kept_ = static_cast<double>(kept) / static_cast<double>(reference_edges_.size());
       moved_run_ = edges_kept_ < options_.min_edges_kept ? moved_run_ + 1 : 0;
       if (moved_run_ >= options_.moved_frames) moved_ = true;
+    }
+    if (reference_count_ >= options_.reference_frames &&
+        ++frames_since_check_ >= options_.shift_check_every) {
+      frames_since_check_ = 0;
+      misalignment_px_ = registration_.Measure(frame);
+      if (misalignment_px_ >= 0.0) {
+        // Inconclusive registrations (too few patches found) count neither way.
+        shifted_ = misalignment_px_ > options_.max_shift_px;
+        shift_run_ = shifted_ ? shift_run_ + 1 : 0;
+        if (shift_run_ >= options_.moved_checks) moved_ = true;
+      }
     }
   }
 

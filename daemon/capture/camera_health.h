@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "capture/camera_source.h"
+#include "capture/view_registration.h"
 
 namespace hg::capture {
 
@@ -46,17 +47,33 @@ struct CameraHealthOptions {
   int edge_threshold = 24;       ///< Gradient (grey levels per sample step) that makes an edge.
   double min_edges_kept = 0.45;  ///< Share of reference edges still present, below: moved.
   int moved_frames = 10;         ///< Consecutive frames below min_edges_kept before "moved".
+  /// A view registered (ViewRegistration) as shifted by more than this
+  /// many pixels somewhere, check after check, counts as moved. The pipeline
+  /// sets it to half the foreground dilation (at least 1 px), so that a shift
+  /// that goes unnoticed stays within what the dilation covers.
+  double max_shift_px = 1.0;
+  int shift_check_every = 3;  ///< Frames between two registrations of the view.
+  int moved_checks = 5;       ///< Registrations in a row over max_shift_px before "moved".
 };
 
 /// Watches one camera's images (kMono and kRgb frames; masks are not checked)
 /// on a sparse grid: cheap enough for every frame of every camera.
 ///
-/// A moved camera is found by its edges: the strong grey-level gradients of
-/// the reference view (the first frames, taken with the cell as installed)
-/// must mostly still be there, at the same grid sample. People hide some of them
-/// for a while; a camera turned by a fraction of a degree loses nearly all at
-/// once and for good. A camera whose calibration no longer holds must not
-/// certify anything free, so "moved" stays until Reset() (after recalibration).
+/// A moved camera is found two ways against the reference view (the first
+/// frames, taken with the cell as installed):
+/// - by its edges: the strong grey-level gradients of the reference view must
+///   mostly still be there, at the same grid sample. People hide some of them
+///   for a while; a camera turned by a grid step or more loses nearly all at
+///   once and for good;
+/// - by registration (ViewRegistration), every `shift_check_every` frames:
+///   textured patches of the reference view are found again to a fraction
+///   of a pixel, and a shift, roll or zoom of more than `max_shift_px`
+///   anywhere in the view, `moved_checks` times in a row, is a move; from the
+///   first such registration on the camera is shifted() (not to be used). People
+///   in front of patches leave them out; when too few are found, the check
+///   tells nothing and is not counted.
+/// A camera whose calibration no longer holds must not certify anything
+/// free, so "moved" stays until Reset() (after recalibration).
 ///
 /// Thread-compatible; buffers are sized on the first frame, Check() does not
 /// allocate afterwards.
@@ -80,6 +97,16 @@ class CameraHealthMonitor {
   /// Edges of the reference view: a view with few (a blank wall, a view
   /// covered while the reference was taken) cannot be found moved.
   [[nodiscard]] std::size_t reference_edges() const { return reference_edges_.size(); }
+  /// Textured patches of the reference view that registration finds again
+  /// (fewer than ViewRegistration::kFewPatches: the view cannot be registered).
+  [[nodiscard]] int reference_patches() const { return registration_.patches(); }
+  /// The view's misalignment against the reference at the last registration,
+  /// pixels; negative when it could not be told (or before the reference).
+  [[nodiscard]] double misalignment_px() const { return misalignment_px_; }
+  /// The last conclusive registration found the view shifted by more than
+  /// max_shift_px: until one finds it back in place (or it turns moved), the
+  /// camera's frames must not be used, as its calibration may no longer hold.
+  [[nodiscard]] bool shifted() const { return shifted_; }
   /// Frames a repeat is looked for among: a driver may cycle through its
   /// buffers, stale ones again and again (the GigE source holds 8, a V4L2
   /// source up to 32: `buffers`, which a driver may raise). A replayed
@@ -106,6 +133,11 @@ class CameraHealthMonitor {
   int recent_next_ = 0;
   int identical_run_ = 0;  // Repeated frames in a row.
   int moved_run_ = 0;
+  ViewRegistration registration_;
+  int frames_since_check_ = 0;
+  int shift_run_ = 0;  // Registrations in a row over max_shift_px.
+  double misalignment_px_ = -1.0;
+  bool shifted_ = false;
   bool moved_ = false;
   double edges_kept_ = 1.0;
   CameraFault fault_ = CameraFault::kNone;

@@ -78,6 +78,11 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   std::vector<octree::CameraView> views;
   for (PipelineCamera& c : cameras) {
     auto runtime = std::make_unique<CameraRuntime>(c.model, std::move(c.source), c.timeout_ms);
+    // A shift of the view that is not found as a move stays within half of
+    // what the foreground dilation covers; the other half is for colours.
+    capture::CameraHealthOptions health;
+    health.max_shift_px = std::max(1.0, 0.5 * options_.background_dilate_px);
+    runtime->health_monitor = capture::CameraHealthMonitor(health);
     if (c.model.HasDistortion()) {
       runtime->undistorter = std::make_unique<silhouette::ConservativeUndistorter>(c.model);
     }
@@ -305,12 +310,20 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
             "this camera cannot be found; aim it at some structure, or check its calibration "
             "by other means",
             c.model.name, c.health_monitor.reference_edges());
+      } else if (c.health_monitor.reference_patches() < capture::ViewRegistration::kFewPatches) {
+        log::Warn(
+            "{}: its view has {} textured patches (a blank wall, or covered at start-up): a "
+            "move of this camera by less than 8 pixels cannot be found; aim it at some "
+            "structure, or check its calibration by other means",
+            c.model.name, c.health_monitor.reference_patches());
       }
     }
     if (fault != capture::CameraFault::kNone) return;
     // A repeat of the last frame is not a new view: dropped, so the camera's
     // age keeps growing (dilation, then stale at its timeout) until frozen.
-    if (c.health_monitor.repeated()) return;
+    // So is a view found shifted, until it is found back in place or moved:
+    // the frames from before the shift stay true to the calibration.
+    if (c.health_monitor.repeated() || c.health_monitor.shifted()) return;
     using Start = PipelineOptions::BackgroundStart;
     if (!c.background) {
       // Warm-up, the camera's first frame: the model, and its saved background.

@@ -11,6 +11,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "capture/camera_health.h"
+#include "capture/view_registration.h"
 #include "scene/demo_cell.h"
 #include "silhouette/background_model.h"
 #include "sim/colour_renderer.h"
@@ -184,6 +186,58 @@ void BM_BackgroundLearningFullHd(benchmark::State& state) {
       benchmark::Counter::kIsRate | benchmark::Counter::kInvert, benchmark::Counter::kIs1000);
 }
 BENCHMARK(BM_BackgroundLearningFullHd)->Unit(benchmark::kMillisecond);
+
+// The health checks of one Full HD RGB frame after the reference view is
+// taken: the edge grid and the frozen check on every frame, registration of
+// the view on every third (CameraHealthOptions::shift_check_every).
+void BM_CameraHealthFullHd(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  capture::CameraHealthMonitor monitor;
+  capture::Frame frame;
+  frame.kind = capture::FrameKind::kRgb;
+  for (int i = 0; !monitor.has_reference(); ++i) {
+    frame.rgb = w.empty[static_cast<std::size_t>(i) % w.empty.size()];
+    monitor.Check(frame);
+  }
+  std::vector<capture::Frame> frames(w.frames.size());
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    frames[i].kind = capture::FrameKind::kRgb;
+    frames[i].rgb = w.frames[i];
+  }
+  std::size_t i = 0;
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(monitor.Check(frames[i++ % frames.size()]));
+  }
+  state.counters["patches"] = monitor.reference_patches();
+  state.counters["misalignment_px"] = monitor.misalignment_px();
+}
+BENCHMARK(BM_CameraHealthFullHd)->Unit(benchmark::kMillisecond);
+
+// One registration of a Full HD RGB frame's view against the reference
+// (ViewRegistration::Measure()), with three people walking in front of it.
+void BM_ViewRegistrationFullHd(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  capture::ViewRegistration registration;
+  capture::Frame frame;
+  frame.kind = capture::FrameKind::kRgb;
+  for (int i = 0; i < 10; ++i) {
+    frame.rgb = w.empty[static_cast<std::size_t>(i)];
+    registration.Accumulate(frame);
+  }
+  registration.TakeReference();
+  std::vector<capture::Frame> frames(w.frames.size());
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    frames[i].kind = capture::FrameKind::kRgb;
+    frames[i].rgb = w.frames[i];
+  }
+  std::size_t i = 0;
+  double misalignment = 0.0;
+  for (auto _ : state) misalignment = registration.Measure(frames[i++ % frames.size()]);
+  state.counters["patches"] = registration.patches();
+  state.counters["matched"] = registration.matched();
+  state.counters["misalignment_px"] = misalignment;
+}
+BENCHMARK(BM_ViewRegistrationFullHd)->Unit(benchmark::kMillisecond);
 
 }  // namespace
 }  // namespace hg::bench

@@ -1,6 +1,8 @@
 // Camera faults on simulated colour frames of the demo cell: people walking
-// are no fault; a camera turned by a degree is "moved" and stays so; frozen,
-// black and saturated images are recognised.
+// are no fault; a camera turned by a degree is "moved" and stays so, and so is
+// one turned, rolled or zoomed by less than the edge grid's step (found by
+// registration, on RGB frames and raw Bayer mosaics); frozen, black and
+// saturated images are recognised.
 #include "capture/camera_health.h"
 
 #include <gtest/gtest.h>
@@ -20,17 +22,22 @@ namespace {
 
 constexpr int kScale = 3;  // Full HD / 3 = 640 x 360.
 
-// The demo cell with its camera 0 scaled down, optionally turned about the
-// camera's own vertical axis by `yaw_deg` (the centre stays where it is).
-sim::Scene DemoCell(double yaw_deg) {
+// The demo cell with its camera 0 scaled down by `scale`, optionally turned
+// about the camera's own vertical axis by `yaw_deg` and about its optical axis
+// by `roll_deg` (the centre stays where it is), and zoomed by `zoom`.
+sim::Scene DemoCell(double yaw_deg, double roll_deg = 0.0, double zoom = 1.0, int scale = kScale) {
   sim::Scene scene = sim::LoadScene(std::string(HG_SOURCE_DIR) + "/config/scenes/demo_cell.yaml");
   scene.cameras.resize(1);
   geometry::CameraModel& m = scene.cameras[0].model;
-  m.width /= kScale;
-  m.height /= kScale;
-  m.K.topRows(2) /= kScale;
+  m.width /= scale;
+  m.height /= scale;
+  m.K.topRows(2) /= scale;
+  m.K(0, 0) *= zoom;
+  m.K(1, 1) *= zoom;
   const Eigen::Matrix3d turn =
-      Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+      (Eigen::AngleAxisd(roll_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
   m.R_CW = turn * m.R_CW;
   m.t_CW = turn * m.t_CW;
   return scene;
@@ -38,7 +45,8 @@ sim::Scene DemoCell(double yaw_deg) {
 
 class Camera {
  public:
-  explicit Camera(double yaw_deg) : scene_(DemoCell(yaw_deg)), renderer_(scene_, 0) {}
+  explicit Camera(double yaw_deg, double roll_deg = 0.0, double zoom = 1.0, int scale = kScale)
+      : scene_(DemoCell(yaw_deg, roll_deg, zoom, scale)), renderer_(scene_, 0) {}
   const Frame& At(int index) {
     const double t = 10.0 + index / 30.0;
     std::vector<sim::BodyState> people;
@@ -77,6 +85,90 @@ TEST(CameraHealthTest, PeopleWalkingAreNoFaultAndATurnedCameraIsMoved) {
   monitor.Reset();
   EXPECT_EQ(monitor.Check(installed.At(91)), CameraFault::kNone);
 }
+
+// The raw BayerRG8 mosaic of a colour frame, as a Bayer camera's (kMono).
+Frame Mosaic(const Frame& colour) {
+  Frame out;
+  out.kind = FrameKind::kMono;
+  out.index = colour.index;
+  out.grey = common::ImageU8(colour.rgb.width, colour.rgb.height);
+  for (int v = 0; v < out.grey.height; ++v) {
+    for (int u = 0; u < out.grey.width; ++u) {
+      out.grey.At(u, v) = colour.rgb.Pixel(u, v)[(u & 1) + (v & 1)];
+    }
+  }
+  return out;
+}
+
+// Moves smaller than the edge grid's step (8 px), at 640 x 360 with the Full
+// HD options: the edges stay at their samples, so only registration finds
+// them. A turn of 0.4 degrees is about 3.6 px here, a roll of 1 degree up to
+// 5 px at the patches, a zoom of 2 % up to 7 px; a turn of 0.05 degrees
+// (0.45 px) is measured, and is no move.
+class RegistrationTest : public ::testing::TestWithParam<bool> {
+ protected:
+  // Frame i of `camera`, as the raw mosaic for the Bayer case.
+  Frame At(Camera& camera, int i) { return GetParam() ? Mosaic(camera.At(i)) : camera.At(i); }
+};
+
+TEST_P(RegistrationTest, MovesSmallerThanTheGridAreFound) {
+  struct Move {
+    const char* what;
+    double yaw_deg, roll_deg, zoom;
+  };
+  const CameraHealthOptions options;  // The Full HD grid, in smaller images.
+  Camera installed(0.0);
+  // Frames of the installed camera, with people walking, and with the light
+  // turned down by a fifth: no fault, and a misalignment well under a pixel.
+  CameraHealthMonitor still(options);
+  double largest = 0.0;
+  int measured = 0;
+  for (int i = 0; i < 150; ++i) {
+    Frame frame = At(installed, i);
+    if (i >= 100) {
+      for (std::uint8_t& p : frame.rgb.pixels) p = static_cast<std::uint8_t>(p * 4 / 5);
+      for (std::uint8_t& p : frame.grey.pixels) p = static_cast<std::uint8_t>(p * 4 / 5);
+    }
+    ASSERT_EQ(still.Check(frame), CameraFault::kNone) << "frame " << i;
+    if (still.misalignment_px() >= 0.0) {
+      largest = std::max(largest, still.misalignment_px());
+      ++measured;
+    }
+  }
+  EXPECT_GE(still.reference_patches(), 30);
+  EXPECT_GE(measured, 40) << "most registrations should tell";
+  EXPECT_LT(largest, 0.5);
+  for (const Move& move :
+       {Move{"turn 0.4 deg", 0.4, 0.0, 1.0}, Move{"roll 1 deg", 0.0, 1.0, 1.0},
+        Move{"zoom 2 %", 0.0, 0.0, 1.02}, Move{"turn 0.05 deg", 0.05, 0.0, 1.0}}) {
+    SCOPED_TRACE(move.what);
+    const bool small = move.yaw_deg == 0.05;  // 0.45 px: under max_shift_px, not a move.
+    Camera bumped(move.yaw_deg, move.roll_deg, move.zoom);
+    CameraHealthMonitor monitor(options);
+    for (int i = 0; i < 30; ++i) ASSERT_EQ(monitor.Check(At(installed, i)), CameraFault::kNone);
+    int first_moved = -1;
+    double least_kept = 1.0;
+    for (int i = 30; i < 90 && first_moved < 0; ++i) {
+      if (monitor.Check(At(bumped, i)) == CameraFault::kMoved) first_moved = i;
+      least_kept = std::min(least_kept, monitor.edges_kept());
+    }
+    if (small) {
+      EXPECT_LT(first_moved, 0);
+      EXPECT_GT(monitor.misalignment_px(), 0.2);
+      EXPECT_LT(monitor.misalignment_px(), 1.0);
+      continue;
+    }
+    ASSERT_GE(first_moved, 0) << "misalignment " << monitor.misalignment_px() << " px";
+    EXPECT_LE(first_moved, 30 + options.shift_check_every * (options.moved_checks + 1));
+    EXPECT_GT(least_kept, options.min_edges_kept) << "the edge grid alone would have seen it";
+    EXPECT_GT(monitor.misalignment_px(), options.max_shift_px);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Frames, RegistrationTest, ::testing::Values(false, true),
+                         [](const ::testing::TestParamInfo<bool>& param) {
+                           return param.param ? "BayerMosaic" : "Rgb";
+                         });
 
 TEST(CameraHealthTest, FrozenBlackAndSaturatedImages) {
   Camera camera(0.0);

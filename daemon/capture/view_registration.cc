@@ -1,0 +1,324 @@
+#include "capture/view_registration.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+namespace hg::capture {
+namespace {
+
+// Grid of cells over the view, one patch (the best corner) per cell.
+constexpr int kCellCols = 8;
+constexpr int kCellRows = 6;
+static_assert(kCellCols * kCellRows <= ViewRegistration::kMaxPatches);
+// Candidate patches are tried every this many pixels.
+constexpr int kCandidateStep = 4;
+// Smaller eigenvalue of the structure tensor (grey levels per pixel, squared,
+// per pixel) a patch needs: texture in two directions, so that it can be found
+// again to a fraction of a pixel (an edge alone slides along itself).
+constexpr double kMinCornerness = 4.0;
+
+int GreyAt(const Frame& frame, int x, int y) {
+  if (frame.kind == FrameKind::kRgb) {
+    const std::uint8_t* p = frame.rgb.Pixel(x, y);
+    return (77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8;
+  }
+  return frame.grey.pixels[static_cast<std::size_t>(y) * frame.grey.width + x];
+}
+
+// Normalised cross-correlation of a zero-mean, unit-norm `ref` of side `side`
+// with the window of `region` (side `region_side`) whose top left is (x, y).
+double Correlation(const float* ref, int side, const float* region, int region_side, int x, int y) {
+  double rc = 0, c = 0, cc = 0;
+  for (int v = 0; v < side; ++v) {
+    const float* row = region + static_cast<std::ptrdiff_t>(y + v) * region_side + x;
+    const float* r = ref + static_cast<std::ptrdiff_t>(v) * side;
+    for (int u = 0; u < side; ++u) {
+      rc += r[u] * row[u];
+      c += row[u];
+      cc += row[u] * row[u];
+    }
+  }
+  const double n = static_cast<double>(side) * side;
+  const double variance = cc - c * c / n;
+  // A flat window (under half a grey level of spread) matches nothing.
+  if (variance < 0.25 * n) return 0.0;
+  return rc / std::sqrt(variance);
+}
+
+// Makes `values` zero-mean and of unit norm; false when they are flat.
+template <std::size_t N>
+bool Normalise(std::array<float, N>* values) {
+  double mean = 0;
+  for (const float v : *values) mean += v;
+  mean /= static_cast<double>(N);
+  double norm = 0;
+  for (float& v : *values) {
+    v = static_cast<float>(v - mean);
+    norm += static_cast<double>(v) * v;
+  }
+  if (norm < 0.25 * static_cast<double>(N)) return false;
+  const double scale = 1.0 / std::sqrt(norm);
+  for (float& v : *values) v = static_cast<float>(v * scale);
+  return true;
+}
+
+// Median of the first n values (reordered).
+double Median(double* values, int n) {
+  std::nth_element(values, values + n / 2, values + n);
+  return values[n / 2];
+}
+
+}  // namespace
+
+void ViewRegistration::Size(int width, int height) {
+  if (width == width_ && height == height_) return;
+  width_ = width;
+  height_ = height;
+  sum_.assign(static_cast<std::size_t>(width) * height, 0);
+  patches_.reserve(kMaxPatches);
+  Reset();
+}
+
+void ViewRegistration::Reset() {
+  std::fill(sum_.begin(), sum_.end(), 0);
+  frames_ = 0;
+  patches_.clear();
+  matched_ = inliers_ = 0;
+}
+
+void ViewRegistration::Accumulate(const Frame& frame) {
+  const bool rgb = frame.kind == FrameKind::kRgb;
+  Size(rgb ? frame.rgb.width : frame.grey.width, rgb ? frame.rgb.height : frame.grey.height);
+  if (frames_ >= 255) return;  // The sums are 16 bits.
+  std::uint16_t* out = sum_.data();
+  if (rgb) {
+    const std::uint8_t* p = frame.rgb.pixels.data();
+    for (std::size_t i = 0; i < sum_.size(); ++i, p += 3) {
+      out[i] = static_cast<std::uint16_t>(out[i] + ((77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8));
+    }
+  } else {
+    const std::uint8_t* p = frame.grey.pixels.data();
+    for (std::size_t i = 0; i < sum_.size(); ++i) {
+      out[i] = static_cast<std::uint16_t>(out[i] + p[i]);
+    }
+  }
+  ++frames_;
+}
+
+int ViewRegistration::TakeReference() {
+  patches_.clear();
+  if (frames_ == 0) return 0;
+  const double scale = 1.0 / frames_;
+  const auto ref = [&](int x, int y) {
+    return sum_[static_cast<std::size_t>(y) * width_ + x] * scale;
+  };
+  // Patch corners (x0, y0) that leave room to search around them.
+  const int x_lo = kMargin, x_hi = width_ - kPatchPx - kMargin;
+  const int y_lo = kMargin, y_hi = height_ - kPatchPx - kMargin;
+  if (x_hi < x_lo || y_hi < y_lo) return 0;
+  for (int row = 0; row < kCellRows; ++row) {
+    for (int col = 0; col < kCellCols; ++col) {
+      const int cx0 = x_lo + (x_hi - x_lo + 1) * col / kCellCols;
+      const int cx1 = x_lo + (x_hi - x_lo + 1) * (col + 1) / kCellCols;
+      const int cy0 = y_lo + (y_hi - y_lo + 1) * row / kCellRows;
+      const int cy1 = y_lo + (y_hi - y_lo + 1) * (row + 1) / kCellRows;
+      double best = kMinCornerness;
+      int best_x = -1, best_y = -1;
+      for (int y0 = cy0; y0 < cy1; y0 += kCandidateStep) {
+        for (int x0 = cx0; x0 < cx1; x0 += kCandidateStep) {
+          // Structure tensor over the patch, every other pixel.
+          double xx = 0, xy = 0, yy = 0;
+          for (int v = y0; v < y0 + kPatchPx; v += 2) {
+            for (int u = x0; u < x0 + kPatchPx; u += 2) {
+              const double gx = 0.5 * (ref(u + 1, v) - ref(u - 1, v));
+              const double gy = 0.5 * (ref(u, v + 1) - ref(u, v - 1));
+              xx += gx * gx;
+              xy += gx * gy;
+              yy += gy * gy;
+            }
+          }
+          constexpr double kSamples = (kPatchPx / 2) * (kPatchPx / 2);
+          xx /= kSamples;
+          xy /= kSamples;
+          yy /= kSamples;
+          const double smaller =
+              0.5 * (xx + yy) - std::sqrt(0.25 * (xx - yy) * (xx - yy) + xy * xy);
+          if (smaller > best) {
+            best = smaller;
+            best_x = x0;
+            best_y = y0;
+          }
+        }
+      }
+      if (best_x < 0) continue;
+      Patch patch;
+      patch.x0 = best_x;
+      patch.y0 = best_y;
+      for (int v = 0; v < kPatchPx; ++v) {
+        for (int u = 0; u < kPatchPx; ++u) {
+          patch.full[static_cast<std::size_t>(v) * kPatchPx + u] =
+              static_cast<float>(ref(best_x + u, best_y + v));
+        }
+      }
+      for (int v = 0; v < kHalfPatch; ++v) {
+        for (int u = 0; u < kHalfPatch; ++u) {
+          const auto at = [&](int du, int dv) {
+            return patch.full[static_cast<std::size_t>(2 * v + dv) * kPatchPx + 2 * u + du];
+          };
+          patch.half[static_cast<std::size_t>(v) * kHalfPatch + u] =
+              0.25F * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1));
+        }
+      }
+      if (Normalise(&patch.full) && Normalise(&patch.half)) patches_.push_back(patch);
+    }
+  }
+  return patches();
+}
+
+void ViewRegistration::ReadRegion(const Frame& frame, int x0, int y0) {
+  for (int v = 0; v < kRegionPx; ++v) {
+    float* row = region_.data() + static_cast<std::ptrdiff_t>(v) * kRegionPx;
+    if (frame.kind == FrameKind::kRgb) {
+      const std::uint8_t* p = frame.rgb.Pixel(x0, y0 + v);
+      for (int u = 0; u < kRegionPx; ++u, p += 3) {
+        row[u] = static_cast<float>((77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8);
+      }
+    } else {
+      for (int u = 0; u < kRegionPx; ++u)
+        row[u] = static_cast<float>(GreyAt(frame, x0 + u, y0 + v));
+    }
+  }
+  for (int v = 0; v < kHalfRegion; ++v) {
+    for (int u = 0; u < kHalfRegion; ++u) {
+      const auto at = [&](int du, int dv) {
+        return region_[static_cast<std::size_t>(2 * v + dv) * kRegionPx + 2 * u + du];
+      };
+      region_half_[static_cast<std::size_t>(v) * kHalfRegion + u] =
+          0.25F * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1));
+    }
+  }
+}
+
+double ViewRegistration::Measure(const Frame& frame) {
+  matched_ = inliers_ = 0;
+  const bool rgb = frame.kind == FrameKind::kRgb;
+  if (patches_.empty() || (rgb ? frame.rgb.width : frame.grey.width) != width_ ||
+      (rgb ? frame.rgb.height : frame.grey.height) != height_) {
+    return -1.0;
+  }
+  for (std::size_t i = 0; i < patches_.size(); ++i) {
+    const Patch& patch = patches_[i];
+    Found& found = found_[i];
+    found = {};
+    found.x = patch.x0 + 0.5 * kPatchPx - 0.5 * width_;
+    found.y = patch.y0 + 0.5 * kPatchPx - 0.5 * height_;
+    ReadRegion(frame, patch.x0 - kMargin, patch.y0 - kMargin);
+    // Coarse: every shift of up to kSearchPx, in steps of two pixels.
+    constexpr int kHalfSearch = kSearchPx / 2;
+    constexpr int kHalfMargin = kMargin / 2;
+    double best = -2.0;
+    int dx = 0, dy = 0;
+    for (int oy = -kHalfSearch; oy <= kHalfSearch; ++oy) {
+      for (int ox = -kHalfSearch; ox <= kHalfSearch; ++ox) {
+        const double s = Correlation(patch.half.data(), kHalfPatch, region_half_.data(),
+                                     kHalfRegion, kHalfMargin + ox, kHalfMargin + oy);
+        if (s > best) {
+          best = s;
+          dx = 2 * ox;
+          dy = 2 * oy;
+        }
+      }
+    }
+    // Fine: climb to the best whole-pixel shift at full resolution.
+    const auto score = [&](int sx, int sy) {
+      return Correlation(patch.full.data(), kPatchPx, region_.data(), kRegionPx, kMargin + sx,
+                         kMargin + sy);
+    };
+    std::array<double, 9> around{};
+    bool peak = false;
+    for (int step = 0; step < 4 && !peak; ++step) {
+      int best_k = 4;
+      for (int k = 0; k < 9; ++k) {
+        around[k] = score(dx + k % 3 - 1, dy + k / 3 - 1);
+        if (around[k] > around[best_k]) best_k = k;
+      }
+      if (best_k == 4) {
+        peak = true;
+      } else {
+        dx += best_k % 3 - 1;
+        dy += best_k / 3 - 1;
+        if (std::abs(dx) > kSearchPx || std::abs(dy) > kSearchPx) break;
+      }
+    }
+    if (!peak || around[4] < kMinCorrelation) continue;
+    // Sub-pixel: a parabola through the scores on either side, each way.
+    const double curve_x = around[3] - 2.0 * around[4] + around[5];
+    const double curve_y = around[1] - 2.0 * around[4] + around[7];
+    if (curve_x >= 0.0 || curve_y >= 0.0) continue;
+    found.dx = dx + std::clamp(0.5 * (around[3] - around[5]) / curve_x, -0.5, 0.5);
+    found.dy = dy + std::clamp(0.5 * (around[1] - around[7]) / curve_y, -0.5, 0.5);
+    found.ok = true;
+    ++matched_;
+  }
+  return FitAndMeasure();
+}
+
+double ViewRegistration::FitAndMeasure() {
+  const int n = patches();
+  if (matched_ < std::max(kFewPatches, n / 4)) return -1.0;
+  std::array<double, kMaxPatches> a{}, b{};
+  // A robust start: the median shift; patches far from it are left out.
+  int m = 0;
+  for (int i = 0; i < n; ++i) {
+    if (found_[i].ok) {
+      a[m] = found_[i].dx;
+      b[m] = found_[i].dy;
+      ++m;
+    }
+  }
+  const double tx0 = Median(a.data(), m), ty0 = Median(b.data(), m);
+  // The similarity, as displacement d = [s -r; r s] p + t of the place p.
+  Eigen::Vector4d params(0.0, 0.0, tx0, ty0);
+  const auto displacement = [&](const Found& f) {
+    return Eigen::Vector2d(params[0] * f.x - params[1] * f.y + params[2],
+                           params[1] * f.x + params[0] * f.y + params[3]);
+  };
+  const auto residual = [&](const Found& f) {
+    return (displacement(f) - Eigen::Vector2d(f.dx, f.dy)).norm();
+  };
+  for (const double floor_px : {1.5, 0.75}) {
+    m = 0;
+    for (int i = 0; i < n; ++i) {
+      if (found_[i].ok) a[m++] = residual(found_[i]);
+    }
+    const double limit = std::max(floor_px, 3.0 * Median(a.data(), m));
+    Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
+    Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
+    int kept = 0;
+    for (int i = 0; i < n; ++i) {
+      const Found& f = found_[i];
+      if (!f.ok || residual(f) > limit) continue;
+      // Rows of the two equations, in units of a thousand pixels for p.
+      const Eigen::Vector4d row_x(f.x * 1e-3, -f.y * 1e-3, 1.0, 0.0);
+      const Eigen::Vector4d row_y(f.y * 1e-3, f.x * 1e-3, 0.0, 1.0);
+      normal += row_x * row_x.transpose() + row_y * row_y.transpose();
+      rhs += row_x * f.dx + row_y * f.dy;
+      ++kept;
+    }
+    inliers_ = kept;
+    if (kept < kFewPatches) return -1.0;
+    Eigen::Vector4d solved = normal.ldlt().solve(rhs);
+    solved[0] *= 1e-3;
+    solved[1] *= 1e-3;
+    params = solved;
+  }
+  // The largest displacement at any patch's place: the patches spread over
+  // the view, so this is about the largest anywhere in it.
+  double largest = 0.0;
+  for (int i = 0; i < n; ++i) largest = std::max(largest, displacement(found_[i]).norm());
+  return largest;
+}
+
+}  // namespace hg::capture
