@@ -95,6 +95,11 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s,
       std::snprintf(cam, sizeof(cam), " margin %.1f cm", c.margin_m * 100.0);
       line += cam;
     }
+    if (c.shifted) {
+      // Its frames wait for the view to be found back in place (or moved).
+      std::snprintf(cam, sizeof(cam), " shifted %.1f px", c.misalignment_px);
+      line += cam;
+    }
     if (c.learning) line += " learning";  // The background: all foreground meanwhile.
     if (c.corrupt > 0) line += std::string(" corrupt ").append(std::to_string(c.corrupt));
     // Transport trouble of a GigE Vision camera: lost packets, host too slow.

@@ -302,6 +302,9 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     // frames are dropped and fusion counts it as seeing nothing.
     const capture::CameraFault fault = c.health_monitor.Check(frame);
     c.fault.store(static_cast<std::uint8_t>(fault), std::memory_order_relaxed);
+    c.misalignment_px.store(static_cast<float>(c.health_monitor.misalignment_px()),
+                            std::memory_order_relaxed);
+    c.shifted.store(c.health_monitor.shifted(), std::memory_order_relaxed);
     if (!c.reference_logged && c.health_monitor.has_reference()) {
       c.reference_logged = true;  // Once, when the reference view is taken.
       if (c.health_monitor.reference_edges() < capture::CameraHealthMonitor::kFewEdges) {
@@ -565,6 +568,8 @@ std::shared_ptr<OccupancySnapshot> Pipeline::RunCycle(
               : c.seen                       ? CameraState::kStale
                                              : CameraState::kStarting;
     h.fault = fault;
+    h.misalignment_px = c.misalignment_px.load(std::memory_order_relaxed);
+    h.shifted = fault == 0 && c.shifted.load(std::memory_order_relaxed);
     h.learning = c.current != nullptr && c.current->learning;
     h.fps = c.fps;
     h.frame_age_ms = age_ms;

@@ -225,8 +225,10 @@ class Pipeline {
     std::atomic<std::uint32_t>* signal = nullptr;  // Bumped by the capture thread every loop.
     common::LatestValue<Slot> slot;
     std::atomic<std::uint64_t> frames{0};
-    std::atomic<std::uint64_t> corrupt{0};  // Frames of the wrong size.
-    std::atomic<std::uint8_t> fault{0};     // capture::CameraFault.
+    std::atomic<std::uint64_t> corrupt{0};      // Frames of the wrong size.
+    std::atomic<std::uint8_t> fault{0};         // capture::CameraFault.
+    std::atomic<float> misalignment_px{-1.0F};  // CameraHealth::misalignment_px.
+    std::atomic<bool> shifted{false};           // CameraHealth::shifted.
     /// An obstacle covers the lens (capture::CameraFault::kBlocked): failed,
     /// the status degraded, for as long as the daemon runs.
     bool blocked = false;

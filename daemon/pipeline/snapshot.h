@@ -47,6 +47,14 @@ struct CameraHealth {
   /// and the snapshot's stamp (PipelineOptions::max_speed_mps), rounded up
   /// and held a while. 0 for a frame of the snapshot's instant.
   double margin_m = 0.0;
+  /// Image cameras: the view's misalignment against its reference view at the
+  /// last registration (pixels; capture::CameraHealthMonitor); negative when
+  /// unknown (masks, before the reference, too little of the view seen).
+  double misalignment_px = -1.0;
+  /// The view was last found shifted beyond what is tolerated: its frames
+  /// are not used (stale after its timeout) until it is found back in place,
+  /// or failed (moved) after a few registrations more.
+  bool shifted = false;
 };
 
 struct PipelineHealth {

@@ -57,6 +57,15 @@ TEST(HealthLineTest, DegradedAbortedAndCameraFaults) {
             "cycle 42 DEGRADED (aborted, refined to 6.2 cm) occupied 0.500 m^3 occluded 0.250 m^3 "
             "octree 12.3 ms cycle 20.0 ms skew 1.5 ms deadline misses 3 missed cycles 1 | cam0 "
             "failed 0 fps (blocked) cam1 ok 30 fps margin 3.4 cm corrupt 2");
+  // A view found shifted: its frames wait, so it goes stale, and the line says why.
+  s.health.cameras[1].state = pipeline::CameraState::kStale;
+  s.health.cameras[1].margin_m = 0.0;
+  s.health.cameras[1].corrupt = 0;
+  s.health.cameras[1].misalignment_px = 3.62;
+  s.health.cameras[1].shifted = true;
+  EXPECT_NE(HealthLine(s, std::nullopt, false).find("cam1 stale 30 fps shifted 3.6 px"),
+            std::string::npos)
+      << HealthLine(s, std::nullopt, false);
 }
 
 // Another publisher of the same topics (a second daemon with a copied

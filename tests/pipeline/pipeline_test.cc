@@ -689,7 +689,10 @@ TEST(PipelineTest, ACameraTurnedByLessThanTheEdgeGridIsFoundMoved) {
     const auto s = frames.Cycle(pipeline, i, true);
     ASSERT_EQ(reported_free(*s), 0) << "frame " << i;
     ASSERT_EQ(s->health.cameras[0].fault, 0) << "frame " << i;
+    ASSERT_FALSE(s->health.cameras[0].shifted) << "frame " << i;
+    ASSERT_LT(s->health.cameras[0].misalignment_px, 0.5) << "frame " << i;
   }
+  EXPECT_GE(pipeline.Latest()->health.cameras[0].misalignment_px, 0.0) << "never registered";
   sim::Scene turned = *scene;
   geometry::CameraModel& m = turned.cameras[0].model;
   const Eigen::Matrix3d turn =
@@ -700,9 +703,14 @@ TEST(PipelineTest, ACameraTurnedByLessThanTheEdgeGridIsFoundMoved) {
   const int turned_at = i;
   int moved_at = -1;
   int free_before_found = 0;
+  bool told_shifted = false;
   for (; i < turned_at + 60; ++i) {
     const auto s = frames.Cycle(pipeline, i, true);
     const CameraHealth& c = s->health.cameras[0];
+    if (c.shifted) {
+      told_shifted = true;
+      EXPECT_GT(c.misalignment_px, 1.0) << "frame " << i;
+    }
     if (moved_at < 0 && c.fault == static_cast<std::uint8_t>(capture::CameraFault::kMoved)) {
       moved_at = i;
     }
@@ -719,6 +727,7 @@ TEST(PipelineTest, ACameraTurnedByLessThanTheEdgeGridIsFoundMoved) {
     }
   }
   ASSERT_GE(moved_at, 0) << "the turned camera was not found moved";
+  EXPECT_TRUE(told_shifted) << "the snapshots never said the view was shifted";
   EXPECT_LE(moved_at - turned_at, 15 + 3) << "found too late";
   EXPECT_LE(free_before_found, 60) << "in the frames before the first registration";
 }
