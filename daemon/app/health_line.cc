@@ -95,7 +95,10 @@ std::string HealthLine(const pipeline::OccupancySnapshot& s,
       std::snprintf(cam, sizeof(cam), " margin %.1f cm", c.margin_m * 100.0);
       line += cam;
     }
-    if (c.shifted) {
+    if (c.shifted && c.misalignment_px < 0.0) {
+      // Its view has yet to be found (against its taught view): frames wait.
+      line += " view not matched";
+    } else if (c.shifted) {
       // Its frames wait for the view to be found back in place (or moved).
       std::snprintf(cam, sizeof(cam), " shifted %.1f px", c.misalignment_px);
       line += cam;

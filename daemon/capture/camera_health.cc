@@ -46,6 +46,11 @@ void CameraHealthMonitor::Reset() {
   shift_run_ = 0;
   misalignment_px_ = -1.0;
   shifted_ = false;
+  taught_.Reset();
+  taught_pending_ = false;
+  taught_agree_ = taught_differ_ = 0;
+  taught_frames_ = 0;
+  moved_since_taught_ = false;
   moved_ = false;
   edges_kept_ = 1.0;
   fault_ = CameraFault::kNone;
@@ -95,6 +100,14 @@ bool CameraHealthMonitor::EdgeAt(const std::vector<std::uint8_t>& img, int x, in
   return std::abs(gx) + std::abs(gy) >= 2 * options_.edge_threshold;
 }
 
+void CameraHealthMonitor::SetTaughtView(const Frame& taught) {
+  taught_.Reset();
+  taught_.Accumulate(taught);
+  taught_pending_ = taught_.TakeReference() >= ViewRegistration::kFewPatches;
+  taught_agree_ = taught_differ_ = 0;
+  taught_frames_ = 0;
+}
+
 CameraFault CameraHealthMonitor::Check(const Frame& frame) {
   if (frame.kind == FrameKind::kMask) return fault_;
   Sample(frame);
@@ -119,6 +132,24 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
   const double mean = static_cast<double>(sum) / static_cast<double>(n);
 
   if (!moved_ && mean >= options_.dark_level && mean <= options_.saturated_level) {
+    if (taught_pending_) {
+      // Every frame until settled: the camera's frames wait meanwhile.
+      ++taught_frames_;
+      const double taught_px = taught_.Measure(frame);
+      if (taught_px >= 0.0) {
+        misalignment_px_ = taught_px;
+        const bool differs = taught_px > options_.max_shift_px;
+        taught_differ_ = differs ? taught_differ_ + 1 : 0;
+        taught_agree_ = differs ? 0 : taught_agree_ + 1;
+        if (taught_differ_ >= options_.moved_checks) {
+          moved_ = true;
+          moved_since_taught_ = true;
+          taught_pending_ = false;
+        } else if (taught_agree_ >= kTaughtMatches) {
+          taught_pending_ = false;
+        }
+      }
+    }
     if (reference_count_ < options_.reference_frames) {
       for (std::size_t i = 0; i < n; ++i) reference_sum_[i] += img[i];
       registration_.Accumulate(frame);
@@ -152,10 +183,12 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
     if (reference_count_ >= options_.reference_frames &&
         ++frames_since_check_ >= options_.shift_check_every) {
       frames_since_check_ = 0;
-      misalignment_px_ = registration_.Measure(frame);
-      if (misalignment_px_ >= 0.0) {
+      const double start_px = registration_.Measure(frame);
+      // While the taught view is matched, its misalignment is the one told.
+      if (!taught_pending_) misalignment_px_ = start_px;
+      if (start_px >= 0.0) {
         // Inconclusive registrations (too few patches found) count neither way.
-        shifted_ = misalignment_px_ > options_.max_shift_px;
+        shifted_ = start_px > options_.max_shift_px;
         shift_run_ = shifted_ ? shift_run_ + 1 : 0;
         if (shift_run_ >= options_.moved_checks) moved_ = true;
       }

@@ -106,12 +106,32 @@ class CameraHealthMonitor {
   /// The last conclusive registration found the view shifted by more than
   /// max_shift_px: until one finds it back in place (or it turns moved), the
   /// camera's frames must not be used, as its calibration may no longer hold.
-  [[nodiscard]] bool shifted() const { return shifted_; }
+  /// Also while the view has yet to be found to match its taught view.
+  [[nodiscard]] bool shifted() const { return shifted_ || taught_pending_; }
+  /// The view the camera's kept background was taught in (its means, as a
+  /// frame of the camera's kind and size), normally right after the camera
+  /// was calibrated: a camera moved while the daemon was stopped no longer
+  /// matches it. From now on every frame is registered against it until
+  /// conclusive registrations in a row agree: kTaughtMatches within
+  /// max_shift_px, and the check is passed; `moved_checks` beyond, and the
+  /// camera is moved.
+  /// Meanwhile shifted() holds. Without texture enough to register by, no
+  /// check. Allocates (start-up).
+  void SetTaughtView(const Frame& taught);
+  /// The taught view is set and not yet matched (nor the camera found moved).
+  [[nodiscard]] bool awaiting_taught_view() const { return taught_pending_; }
+  /// Frames registered against the taught view so far.
+  [[nodiscard]] int taught_frames() const { return taught_frames_; }
+  /// Whether the camera was found moved against its taught view.
+  [[nodiscard]] bool moved_since_taught() const { return moved_since_taught_; }
   /// Frames a repeat is looked for among: a driver may cycle through its
   /// buffers, stale ones again and again (the GigE source holds 8, a V4L2
   /// source up to 32: `buffers`, which a driver may raise). A replayed
   /// recording looping over fewer frames looks the same, and is dropped so.
   static constexpr int kRecentFrames = 32;
+  /// Registrations within max_shift_px of the taught view, in a row, that
+  /// pass the camera (SetTaughtView()).
+  static constexpr int kTaughtMatches = 2;
   /// Fewer reference edges than this: the camera cannot be checked for a move.
   static constexpr std::size_t kFewEdges = 16;
   /// Forgets the reference and every fault (after the camera was re-aimed).
@@ -138,6 +158,11 @@ class CameraHealthMonitor {
   int shift_run_ = 0;  // Registrations in a row over max_shift_px.
   double misalignment_px_ = -1.0;
   bool shifted_ = false;
+  ViewRegistration taught_;  // The kept background's view (SetTaughtView()).
+  bool taught_pending_ = false;
+  int taught_agree_ = 0, taught_differ_ = 0;  // Registrations in a row.
+  int taught_frames_ = 0;
+  bool moved_since_taught_ = false;
   bool moved_ = false;
   double edges_kept_ = 1.0;
   CameraFault fault_ = CameraFault::kNone;

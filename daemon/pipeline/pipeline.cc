@@ -321,6 +321,32 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
             c.model.name, c.health_monitor.reference_patches());
       }
     }
+    if (c.taught_told == 1 || c.taught_told == 2) {
+      // What became of the registration against the taught view, told once.
+      const capture::CameraHealthMonitor& m = c.health_monitor;
+      if (m.moved_since_taught()) {
+        c.taught_told = 3;
+        log::Error(
+            "{}: its view is {:.1f} px off the view its kept background was taught in: the "
+            "camera moved while hullguardd was stopped, so its calibration no longer holds; it "
+            "sees nothing (failed, moved) until it is recalibrated and its background taught "
+            "again",
+            c.model.name, m.misalignment_px());
+      } else if (!m.awaiting_taught_view()) {
+        c.taught_told = 3;
+        log::Info("{}: its view matches the view its background was taught in ({:.2f} px)",
+                  c.model.name, m.misalignment_px());
+      } else if (c.taught_told == 1 && m.taught_frames() >= kTaughtPatienceFrames) {
+        c.taught_told = 2;
+        log::Warn(
+            "{}: after {} frames its view still cannot be matched to the view its kept "
+            "background was taught in (too little of it found: people in front of the camera, "
+            "the cell rearranged, or the camera moved further than 12 px); its frames are not "
+            "used until it is. If the camera was moved, recalibrate it and teach its background "
+            "again",
+            c.model.name, m.taught_frames());
+      }
+    }
     if (fault != capture::CameraFault::kNone) return;
     // A repeat of the last frame is not a new view: dropped, so the camera's
     // age keeps growing (dilation, then stale at its timeout) until frozen.
@@ -344,6 +370,32 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
         log::Info("{}: learning the background afresh, to be kept in {}", c.model.name, file);
       } else if (taken_up) {
         log::Info("{}: background taken up from {}", c.model.name, file);
+        // The kept background is the view as taught (after calibration): a
+        // camera moved while the daemon was stopped no longer matches it.
+        capture::Frame taught;
+        taught.kind = frame.kind;
+        const int w = c.model.width, h = c.model.height;
+        if (frame.kind == capture::FrameKind::kRgb) {
+          taught.rgb = common::ImageRgb8(w, h);
+          for (int v = 0; v < h; ++v) {
+            for (int u = 0; u < w; ++u) {
+              for (int k = 0; k < 3; ++k) {
+                taught.rgb.Pixel(u, v)[k] =
+                    static_cast<std::uint8_t>(std::lround(c.background->MeanAt(u, v, k)));
+              }
+            }
+          }
+        } else {
+          taught.grey = common::ImageU8(w, h);
+          for (int v = 0; v < h; ++v) {
+            for (int u = 0; u < w; ++u) {
+              taught.grey.At(u, v) =
+                  static_cast<std::uint8_t>(std::lround(c.background->MeanAt(u, v, 0)));
+            }
+          }
+        }
+        c.health_monitor.SetTaughtView(taught);
+        c.taught_told = c.health_monitor.awaiting_taught_view() ? 1 : 3;
       } else if (options_.background_start == Start::kKeptOnly) {
         c.unlearned = true;
         log::Error(
@@ -356,6 +408,8 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
                   options_.background_dir.empty() ? "no background.keep_dir" : error);
       }
     }
+    // Frames wait until the view is found to match the taught one.
+    if (c.health_monitor.awaiting_taught_view()) return;
     if (c.unlearned) {
       // Sees nothing (failed), as a faulty camera: nothing it shows was learned.
       c.fault.store(static_cast<std::uint8_t>(capture::CameraFault::kUnlearned),

@@ -66,6 +66,11 @@ TEST(HealthLineTest, DegradedAbortedAndCameraFaults) {
   EXPECT_NE(HealthLine(s, std::nullopt, false).find("cam1 stale 30 fps shifted 3.6 px"),
             std::string::npos)
       << HealthLine(s, std::nullopt, false);
+  // Not matched to the view its kept background was taught in (yet).
+  s.health.cameras[1].misalignment_px = -1.0;
+  EXPECT_NE(HealthLine(s, std::nullopt, false).find("cam1 stale 30 fps view not matched"),
+            std::string::npos)
+      << HealthLine(s, std::nullopt, false);
 }
 
 // Another publisher of the same topics (a second daemon with a copied

@@ -621,10 +621,12 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   }
   // The restart, with the people there from its first frame.
   auto restarted = make(dir.string());
-  const auto s = run(*restarted, 100, 3, /*present=*/true);
+  const auto s = run(*restarted, 100, 4, /*present=*/true);
   ASSERT_NE(s, nullptr);
   EXPECT_EQ(reported_free(*s), 0);
-  // Not merely everything occupied: the saved background certifies free space at once.
+  // Not merely everything occupied: the saved background certifies free
+  // space at once, once the view is found to match the taught one (the first
+  // frame takes it up, the next two match it).
   EXPECT_LT(OccupancySnapshot::Cells(s->occupied) + OccupancySnapshot::Cells(s->occluded),
             all_cells / 2);
 
@@ -661,6 +663,18 @@ TEST(PipelineTest, ARestartTakesUpTheSavedBackgroundAndKeepsPeopleOccupied) {
   fs::remove_all(top);
 }
 
+// Camera 0 of the standing scene turned by `degrees` about its vertical axis,
+// its calibration unchanged: the view of a camera that was moved.
+sim::Scene WithCameraTurned(const sim::Scene& scene, double degrees) {
+  sim::Scene turned = scene;
+  geometry::CameraModel& m = turned.cameras[0].model;
+  const Eigen::Matrix3d turn =
+      Eigen::AngleAxisd(degrees * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  m.R_CW = turn * m.R_CW;
+  m.t_CW = turn * m.t_CW;
+  return turned;
+}
+
 // A camera turned by 0.8 degrees while people stand in the cell: its view
 // shifts by about 3.6 pixels, under the health monitor's edge grid (8 px) but
 // beyond what the foreground dilation (2 px) covers, so its silhouettes land
@@ -693,13 +707,7 @@ TEST(PipelineTest, ACameraTurnedByLessThanTheEdgeGridIsFoundMoved) {
     ASSERT_LT(s->health.cameras[0].misalignment_px, 0.5) << "frame " << i;
   }
   EXPECT_GE(pipeline.Latest()->health.cameras[0].misalignment_px, 0.0) << "never registered";
-  sim::Scene turned = *scene;
-  geometry::CameraModel& m = turned.cameras[0].model;
-  const Eigen::Matrix3d turn =
-      Eigen::AngleAxisd(0.8 * M_PI / 180.0, Eigen::Vector3d::UnitY()).toRotationMatrix();
-  m.R_CW = turn * m.R_CW;
-  m.t_CW = turn * m.t_CW;
-  frames.RenderCameraAs(0, turned);
+  frames.RenderCameraAs(0, WithCameraTurned(*scene, 0.8));
   const int turned_at = i;
   int moved_at = -1;
   int free_before_found = 0;
@@ -730,6 +738,71 @@ TEST(PipelineTest, ACameraTurnedByLessThanTheEdgeGridIsFoundMoved) {
   EXPECT_TRUE(told_shifted) << "the snapshots never said the view was shifted";
   EXPECT_LE(moved_at - turned_at, 15 + 3) << "found too late";
   EXPECT_LE(free_before_found, 60) << "in the frames before the first registration";
+}
+
+// A camera moved while the daemon was stopped: its view at start is its own
+// reference, so only the kept background, taught in the view the calibration
+// holds for, tells. Turned by 0.8 or 5 degrees (3.6 and 23 px; enough of the
+// patches move by less than the 12 px looked for), it is failed (moved) after
+// the first frames, and nothing of the people is freed meanwhile; turned by 15
+// degrees, its view is never matched, so its frames are never used. The
+// other cameras match theirs and certify free space.
+TEST(PipelineTest, ACameraMovedWhileStoppedIsFoundByItsKeptBackground) {
+  namespace fs = std::filesystem;
+  const std::shared_ptr<sim::Scene> scene = StandingScene();
+  const fs::path dir = fs::temp_directory_path() / ("hg_moved_stopped_" + std::to_string(getpid()));
+  fs::remove_all(dir);
+  PipelineOptions options;
+  options.bounds = scene->bounds;
+  options.depth = 8;
+  options.publish_depth = 7;
+  options.background.learn_frames = 8;
+  options.background_dir = dir.string();
+  auto reported_free = [&](const OccupancySnapshot& s) {
+    return testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 200, 5),
+                                          s.bounds.min, s.bounds.max, s.depth,
+                                          {&s.occupied, &s.occluded});
+  };
+  {  // Taught with the cell empty, in the calibrated view.
+    StillColourFrames frames(*scene);
+    Pipeline first(options, FedCameras(*scene), {}, nullptr);
+    for (int i = 0; i < options.background.learn_frames + 2; ++i) frames.Cycle(first, i, false);
+  }
+  ASSERT_TRUE(fs::exists(dir / "background-cam0.bin"));
+  for (const double degrees : {0.8, 5.0, 15.0}) {
+    SCOPED_TRACE(degrees);
+    StillColourFrames frames(*scene);
+    frames.RenderCameraAs(0, WithCameraTurned(*scene, degrees));
+    Pipeline restarted(options, FedCameras(*scene), {}, nullptr);
+    std::shared_ptr<const OccupancySnapshot> s;
+    int moved_at = -1;
+    for (int i = 100; i < 160; ++i) {
+      s = frames.Cycle(restarted, i, true);
+      ASSERT_EQ(reported_free(*s), 0) << "frame " << i;
+      const CameraHealth& c = s->health.cameras[0];
+      if (c.fault == static_cast<std::uint8_t>(capture::CameraFault::kMoved) && moved_at < 0) {
+        moved_at = i;
+      }
+      if (i >= 101) {
+        EXPECT_NE(c.state, CameraState::kOk) << "frame " << i;
+        EXPECT_TRUE(s->health.degraded) << "frame " << i;
+      }
+    }
+    if (degrees < 10.0) {
+      EXPECT_GE(moved_at, 0) << "not found moved";
+      EXPECT_LE(moved_at, 100 + capture::CameraHealthOptions{}.moved_checks + 1);
+    } else {
+      EXPECT_LT(moved_at, 0);
+      EXPECT_EQ(s->health.cameras[0].state, CameraState::kStarting) << "a frame was used";
+      EXPECT_TRUE(s->health.cameras[0].shifted);
+      EXPECT_LT(s->health.cameras[0].misalignment_px, 0.0);
+    }
+    for (int c = 1; c < 3; ++c) {
+      EXPECT_EQ(s->health.cameras[c].state, CameraState::kOk) << c;
+      EXPECT_FALSE(s->health.cameras[c].shifted) << c;
+    }
+  }
+  fs::remove_all(dir);
 }
 
 // An image frame of another size than its camera's (a damaged recording, a
