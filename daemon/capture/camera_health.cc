@@ -40,8 +40,10 @@ void CameraHealthMonitor::Reset() {
   identical_run_ = 0;
   recent_count_ = 0;
   recent_next_ = 0;
-  moved_run_ = 0;
-  registration_.Reset();
+  first_frame_.Reset();
+  averaged_.Reset();
+  active_ = Reference::kFirstFrame;
+  shift_while_averaging_ = false;
   frames_since_check_ = 0;
   shift_run_ = 0;
   misalignment_px_ = -1.0;
@@ -51,6 +53,8 @@ void CameraHealthMonitor::Reset() {
   taught_agree_ = taught_differ_ = 0;
   taught_frames_ = 0;
   moved_since_taught_ = false;
+  has_registration_reference_ = false;
+  unmatched_frames_ = 0;
   moved_ = false;
   edges_kept_ = 1.0;
   fault_ = CameraFault::kNone;
@@ -132,10 +136,12 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
   const double mean = static_cast<double>(sum) / static_cast<double>(n);
 
   if (!moved_ && mean >= options_.dark_level && mean <= options_.saturated_level) {
+    bool registered = false;  // This frame was registered against the taught view.
     if (taught_pending_) {
       // Every frame until settled: the camera's frames wait meanwhile.
       ++taught_frames_;
       const double taught_px = taught_.Measure(frame);
+      registered = true;
       if (taught_px >= 0.0) {
         misalignment_px_ = taught_px;
         const bool differs = taught_px > options_.max_shift_px;
@@ -146,15 +152,34 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
           moved_since_taught_ = true;
           taught_pending_ = false;
         } else if (taught_agree_ >= kTaughtMatches) {
+          // Matched: the taught view, the one the calibration holds for (and
+          // without people in it), is the reference from now on.
           taught_pending_ = false;
+          active_ = Reference::kTaught;
+          frames_since_check_ = 0;
         }
       }
     }
+    if (!has_registration_reference_) {
+      // Registration's first reference is the first frame, so that a move
+      // while the reference frames are averaged is found as any other.
+      first_frame_.Accumulate(frame);
+      first_frame_.TakeReference();
+      has_registration_reference_ = true;
+      registered = true;
+    }
+    bool edges_lost = false;
     if (reference_count_ < options_.reference_frames) {
       for (std::size_t i = 0; i < n; ++i) reference_sum_[i] += img[i];
-      registration_.Accumulate(frame);
+      averaged_.Accumulate(frame);
       if (++reference_count_ == options_.reference_frames) {
-        registration_.TakeReference();
+        // The average has less noise; it takes over unless the view moved
+        // meanwhile (it would be a blend), or the taught view is in use.
+        averaged_.TakeReference();
+        if (active_ == Reference::kFirstFrame && !shift_while_averaging_ &&
+            averaged_.patches() >= first_frame_.patches()) {
+          active_ = Reference::kAveraged;
+        }
         for (std::size_t i = 0; i < n; ++i) {
           reference_[i] = static_cast<std::uint8_t>(reference_sum_[i] / reference_count_);
         }
@@ -171,29 +196,42 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
       // An edge counts as kept when the frame has an edge at the same sample.
       // The central differences span two grid steps, so a view shifted by
       // less than about a step keeps its edges and one shifted by more loses
-      // them.
+      // them; so does a view dimmed, or covered by someone near the lens.
       std::size_t kept = 0;
       for (const std::uint32_t i : reference_edges_) {
         kept += EdgeAt(img, static_cast<int>(i) % cols_, static_cast<int>(i) / cols_) ? 1 : 0;
       }
       edges_kept_ = static_cast<double>(kept) / static_cast<double>(reference_edges_.size());
-      moved_run_ = edges_kept_ < options_.min_edges_kept ? moved_run_ + 1 : 0;
-      if (moved_run_ >= options_.moved_frames) moved_ = true;
+      edges_lost = edges_kept_ < options_.min_edges_kept;
     }
-    if (reference_count_ >= options_.reference_frames &&
-        ++frames_since_check_ >= options_.shift_check_every) {
+    // Registration every few frames, and at once when the edges are lost:
+    // it tells a move (beyond registration's reach: found nowhere) from a
+    // dimmed or covered view (found in place).
+    if (!registered && (++frames_since_check_ >= options_.shift_check_every || edges_lost)) {
       frames_since_check_ = 0;
-      const double start_px = registration_.Measure(frame);
+      ViewRegistration& reference = active_ == Reference::kFirstFrame ? first_frame_
+                                    : active_ == Reference::kAveraged ? averaged_
+                                                                      : taught_;
+      const double px = reference.Measure(frame);
+      if (px > options_.max_shift_px && reference_count_ < options_.reference_frames) {
+        shift_while_averaging_ = true;
+      }
       // While the taught view is matched, its misalignment is the one told.
-      if (!taught_pending_) misalignment_px_ = start_px;
-      if (start_px >= 0.0) {
-        // Inconclusive registrations (too few patches found) count neither way.
-        shifted_ = start_px > options_.max_shift_px;
+      if (!taught_pending_) misalignment_px_ = px;
+      if (px >= 0.0) {
+        shifted_ = px > options_.max_shift_px;
         shift_run_ = shifted_ ? shift_run_ + 1 : 0;
         if (shift_run_ >= options_.moved_checks) moved_ = true;
+      } else if (edges_lost) {
+        // Too little found to tell, and the edges are gone: a move farther
+        // than registration looks, or a view covered; not used either way,
+        // until a registration finds it in place.
+        shifted_ = true;
       }
+      // Otherwise (people in front of most patches) it tells nothing.
     }
   }
+  unmatched_frames_ = shifted() && !moved_ ? unmatched_frames_ + 1 : 0;
 
   if (moved_) {
     fault_ = CameraFault::kMoved;

@@ -40,13 +40,14 @@ struct CameraHealthOptions {
   /// a step or more counts as moved (8 px: about 0.4 degrees at Full HD with
   /// a 1.45 rad lens).
   int sample_step_px = 8;
-  int frozen_frames = 15;        ///< Repeated frames in a row before "frozen".
-  int dark_level = 12;           ///< Mean grey below this: black.
-  int saturated_level = 243;     ///< Mean grey above this: saturated.
-  int reference_frames = 10;     ///< Frames averaged into the reference view at start-up.
-  int edge_threshold = 24;       ///< Gradient (grey levels per sample step) that makes an edge.
-  double min_edges_kept = 0.45;  ///< Share of reference edges still present, below: moved.
-  int moved_frames = 10;         ///< Consecutive frames below min_edges_kept before "moved".
+  int frozen_frames = 15;     ///< Repeated frames in a row before "frozen".
+  int dark_level = 12;        ///< Mean grey below this: black.
+  int saturated_level = 243;  ///< Mean grey above this: saturated.
+  int reference_frames = 10;  ///< Frames averaged into the reference view at start-up.
+  int edge_threshold = 24;    ///< Gradient (grey levels per sample step) that makes an edge.
+  /// Share of reference edges still present below which the view is
+  /// registered at once, and taken as shifted if it cannot be found.
+  double min_edges_kept = 0.45;
   /// A view registered (ViewRegistration) as shifted by more than this
   /// many pixels somewhere, check after check, counts as moved. The pipeline
   /// sets it to half the foreground dilation (at least 1 px), so that a shift
@@ -59,19 +60,21 @@ struct CameraHealthOptions {
 /// Watches one camera's images (kMono and kRgb frames; masks are not checked)
 /// on a sparse grid: cheap enough for every frame of every camera.
 ///
-/// A moved camera is found two ways against the reference view (the first
-/// frames, taken with the cell as installed):
-/// - by its edges: the strong grey-level gradients of the reference view must
-///   mostly still be there, at the same grid sample. People hide some of them
-///   for a while; a camera turned by a grid step or more loses nearly all at
-///   once and for good;
-/// - by registration (ViewRegistration), every `shift_check_every` frames:
-///   textured patches of the reference view are found again to a fraction
-///   of a pixel, and a shift, roll or zoom of more than `max_shift_px`
-///   anywhere in the view, `moved_checks` times in a row, is a move; from the
-///   first such registration on the camera is shifted() (not to be used). People
-///   in front of patches leave them out; when too few are found, the check
-///   tells nothing and is not counted.
+/// A moved camera is found by registration (ViewRegistration) against its
+/// reference view: the first frame, or, once the camera's view is found to
+/// match it, the view its kept background was taught in (SetTaughtView()).
+/// Textured patches of the reference are found again to a fraction of a
+/// pixel every `shift_check_every` frames; a shift, roll or zoom of more than
+/// `max_shift_px` anywhere in the view makes the camera shifted() (its frames
+/// are not to be used) at once, and `moved_checks` such registrations in a
+/// row make it moved. People in front of patches leave them out; when too
+/// few are found, the registration tells nothing.
+///
+/// The strong edges of the reference view (the first `reference_frames`
+/// averaged), sampled on a grid, back it up: a view that lost most of them
+/// is registered at once. Found in place, it was dimmed or covered (no
+/// fault); found nowhere (a move beyond the kSearchPx registration looks
+/// for), it is shifted until a registration finds it in place again.
 /// A camera whose calibration no longer holds must not certify anything
 /// free, so "moved" stays until Reset() (after recalibration).
 ///
@@ -99,7 +102,7 @@ class CameraHealthMonitor {
   [[nodiscard]] std::size_t reference_edges() const { return reference_edges_.size(); }
   /// Textured patches of the reference view that registration finds again
   /// (fewer than ViewRegistration::kFewPatches: the view cannot be registered).
-  [[nodiscard]] int reference_patches() const { return registration_.patches(); }
+  [[nodiscard]] int reference_patches() const { return active().patches(); }
   /// The view's misalignment against the reference at the last registration,
   /// pixels; negative when it could not be told (or before the reference).
   [[nodiscard]] double misalignment_px() const { return misalignment_px_; }
@@ -122,6 +125,8 @@ class CameraHealthMonitor {
   [[nodiscard]] bool awaiting_taught_view() const { return taught_pending_; }
   /// Frames registered against the taught view so far.
   [[nodiscard]] int taught_frames() const { return taught_frames_; }
+  /// Frames in a row the camera has been shifted() (0 once moved).
+  [[nodiscard]] int shifted_frames() const { return unmatched_frames_; }
   /// Whether the camera was found moved against its taught view.
   [[nodiscard]] bool moved_since_taught() const { return moved_since_taught_; }
   /// Frames a repeat is looked for among: a driver may cycle through its
@@ -152,8 +157,18 @@ class CameraHealthMonitor {
   int recent_count_ = 0;
   int recent_next_ = 0;
   int identical_run_ = 0;  // Repeated frames in a row.
-  int moved_run_ = 0;
-  ViewRegistration registration_;
+  // Registration's references: the first frame (until the edge reference is
+  // averaged, so that a move meanwhile is found), the average of the
+  // reference frames, and the view the kept background was taught in.
+  enum class Reference : std::uint8_t { kFirstFrame, kAveraged, kTaught };
+  [[nodiscard]] const ViewRegistration& active() const {
+    return active_ == Reference::kFirstFrame ? first_frame_
+           : active_ == Reference::kAveraged ? averaged_
+                                             : taught_;
+  }
+  ViewRegistration first_frame_, averaged_;
+  Reference active_ = Reference::kFirstFrame;
+  bool shift_while_averaging_ = false;  // The first frame's reference stays.
   int frames_since_check_ = 0;
   int shift_run_ = 0;  // Registrations in a row over max_shift_px.
   double misalignment_px_ = -1.0;
@@ -163,6 +178,8 @@ class CameraHealthMonitor {
   int taught_agree_ = 0, taught_differ_ = 0;  // Registrations in a row.
   int taught_frames_ = 0;
   bool moved_since_taught_ = false;
+  bool has_registration_reference_ = false;
+  int unmatched_frames_ = 0;
   bool moved_ = false;
   double edges_kept_ = 1.0;
   CameraFault fault_ = CameraFault::kNone;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 
 #include <Eigen/Dense>
 
@@ -64,21 +65,19 @@ bool Normalise(std::array<float, N>* values) {
   return true;
 }
 
-// Median of the first n values (reordered).
-double Median(double* values, int n) {
-  std::nth_element(values, values + n / 2, values + n);
-  return values[n / 2];
-}
-
 }  // namespace
 
 void ViewRegistration::Size(int width, int height) {
-  if (width == width_ && height == height_) return;
-  width_ = width;
-  height_ = height;
-  sum_.assign(static_cast<std::size_t>(width) * height, 0);
+  const auto pixels = static_cast<std::size_t>(width) * height;
+  if (width == width_ && height == height_ && sum_.size() == pixels) return;
+  if (width != width_ || height != height_) {
+    width_ = width;
+    height_ = height;
+    Reset();
+  }
+  sum_.assign(pixels, 0);  // Released again by TakeReference().
+  frames_ = 0;
   patches_.reserve(kMaxPatches);
-  Reset();
 }
 
 void ViewRegistration::Reset() {
@@ -124,8 +123,8 @@ int ViewRegistration::TakeReference() {
       const int cx1 = x_lo + (x_hi - x_lo + 1) * (col + 1) / kCellCols;
       const int cy0 = y_lo + (y_hi - y_lo + 1) * row / kCellRows;
       const int cy1 = y_lo + (y_hi - y_lo + 1) * (row + 1) / kCellRows;
-      double best = kMinCornerness;
-      int best_x = -1, best_y = -1;
+      // The few best corners of the cell, best first.
+      std::array<Candidate, kCandidatesPerCell> best{};
       for (int y0 = cy0; y0 < cy1; y0 += kCandidateStep) {
         for (int x0 = cx0; x0 < cx1; x0 += kCandidateStep) {
           // Structure tensor over the patch, every other pixel.
@@ -145,35 +144,42 @@ int ViewRegistration::TakeReference() {
           yy /= kSamples;
           const double smaller =
               0.5 * (xx + yy) - std::sqrt(0.25 * (xx - yy) * (xx - yy) + xy * xy);
-          if (smaller > best) {
-            best = smaller;
-            best_x = x0;
-            best_y = y0;
+          if (smaller > kMinCornerness && smaller > best.back().score) {
+            best.back() = {smaller, x0, y0};
+            std::sort(best.begin(), best.end(),
+                      [](const Candidate& a, const Candidate& b) { return a.score > b.score; });
           }
         }
       }
-      if (best_x < 0) continue;
-      Patch patch;
-      patch.x0 = best_x;
-      patch.y0 = best_y;
-      for (int v = 0; v < kPatchPx; ++v) {
-        for (int u = 0; u < kPatchPx; ++u) {
-          patch.full[static_cast<std::size_t>(v) * kPatchPx + u] =
-              static_cast<float>(ref(best_x + u, best_y + v));
+      for (const Candidate& candidate : best) {
+        if (candidate.x0 < 0) break;
+        Patch& patch = scratch_patch_;
+        patch.x0 = candidate.x0;
+        patch.y0 = candidate.y0;
+        for (int v = 0; v < kPatchPx; ++v) {
+          for (int u = 0; u < kPatchPx; ++u) {
+            patch.full[static_cast<std::size_t>(v) * kPatchPx + u] =
+                static_cast<float>(ref(patch.x0 + u, patch.y0 + v));
+          }
         }
-      }
-      for (int v = 0; v < kHalfPatch; ++v) {
-        for (int u = 0; u < kHalfPatch; ++u) {
-          const auto at = [&](int du, int dv) {
-            return patch.full[static_cast<std::size_t>(2 * v + dv) * kPatchPx + 2 * u + du];
-          };
-          patch.half[static_cast<std::size_t>(v) * kHalfPatch + u] =
-              0.25F * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1));
+        for (int v = 0; v < kHalfPatch; ++v) {
+          for (int u = 0; u < kHalfPatch; ++u) {
+            const auto at = [&](int du, int dv) {
+              return patch.full[static_cast<std::size_t>(2 * v + dv) * kPatchPx + 2 * u + du];
+            };
+            patch.half[static_cast<std::size_t>(v) * kHalfPatch + u] =
+                0.25F * (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1));
+          }
         }
+        if (!Normalise(&patch.full) || !Normalise(&patch.half)) continue;
+        patches_.push_back(patch);
+        break;
       }
-      if (Normalise(&patch.full) && Normalise(&patch.half)) patches_.push_back(patch);
     }
   }
+  // The sums are not needed any more: their memory (2 bytes a pixel) goes.
+  std::vector<std::uint16_t>().swap(sum_);
+  frames_ = 0;
   return patches();
 }
 
@@ -218,12 +224,15 @@ double ViewRegistration::Measure(const Frame& frame) {
     // Coarse: every shift of up to kSearchPx, in steps of two pixels.
     constexpr int kHalfSearch = kSearchPx / 2;
     constexpr int kHalfMargin = kMargin / 2;
+    constexpr int kCoarseSide = 2 * kHalfSearch + 1;
     double best = -2.0;
     int dx = 0, dy = 0;
     for (int oy = -kHalfSearch; oy <= kHalfSearch; ++oy) {
       for (int ox = -kHalfSearch; ox <= kHalfSearch; ++ox) {
         const double s = Correlation(patch.half.data(), kHalfPatch, region_half_.data(),
                                      kHalfRegion, kHalfMargin + ox, kHalfMargin + oy);
+        coarse_[static_cast<std::size_t>(oy + kHalfSearch) * kCoarseSide + ox + kHalfSearch] =
+            static_cast<float>(s);
         if (s > best) {
           best = s;
           dx = 2 * ox;
@@ -231,6 +240,28 @@ double ViewRegistration::Measure(const Frame& frame) {
         }
       }
     }
+    // A repetitive texture (a rack, a grating) matches nearly as well a
+    // period away, where the search could settle and read a move that did
+    // not happen: a second peak nearly as high leaves the patch out.
+    bool ambiguous = false;
+    for (int y = 0; y < kCoarseSide && !ambiguous; ++y) {
+      for (int x = 0; x < kCoarseSide && !ambiguous; ++x) {
+        if (std::abs(2 * (x - kHalfSearch) - dx) <= 2 &&
+            std::abs(2 * (y - kHalfSearch) - dy) <= 2) {
+          continue;  // The best peak itself.
+        }
+        const float c = coarse_[static_cast<std::size_t>(y) * kCoarseSide + x];
+        if (c < best - kAmbiguityMargin) continue;
+        bool peak = true;  // A local maximum (the border counts as lower).
+        for (int k = 0; k < 9 && peak; ++k) {
+          const int nx = x + k % 3 - 1, ny = y + k / 3 - 1;
+          if (k == 4 || nx < 0 || ny < 0 || nx >= kCoarseSide || ny >= kCoarseSide) continue;
+          peak = c >= coarse_[static_cast<std::size_t>(ny) * kCoarseSide + nx];
+        }
+        ambiguous = peak;
+      }
+    }
+    found.ambiguous = ambiguous;
     // Fine: climb to the best whole-pixel shift at full resolution.
     const auto score = [&](int sx, int sy) {
       return Correlation(patch.full.data(), kPatchPx, region_.data(), kRegionPx, kMargin + sx,
@@ -267,20 +298,14 @@ double ViewRegistration::Measure(const Frame& frame) {
 
 double ViewRegistration::FitAndMeasure() {
   const int n = patches();
-  if (matched_ < std::max(kFewPatches, n / 4)) return -1.0;
-  std::array<double, kMaxPatches> a{}, b{};
-  // A robust start: the median shift; patches far from it are left out.
-  int m = 0;
-  for (int i = 0; i < n; ++i) {
-    if (found_[i].ok) {
-      a[m] = found_[i].dx;
-      b[m] = found_[i].dy;
-      ++m;
-    }
-  }
-  const double tx0 = Median(a.data(), m), ty0 = Median(b.data(), m);
-  // The similarity, as displacement d = [s -r; r s] p + t of the place p.
-  Eigen::Vector4d params(0.0, 0.0, tx0, ty0);
+  const int needed = std::max(kFewPatches, n / 4);
+  if (matched_ < needed) return -1.0;
+  // The similarity, as displacement d = [s -r; r s] p + t of the place p,
+  // that most patches agree with (a patch that matches nearly as well
+  // elsewhere counts half): every pair of patches found gives one. Patches of
+  // a repetitive texture that settled a period off, or of things moved in
+  // the cell, disagree with it and with each other.
+  Eigen::Vector4d params(0.0, 0.0, 0.0, 0.0);
   const auto displacement = [&](const Found& f) {
     return Eigen::Vector2d(params[0] * f.x - params[1] * f.y + params[2],
                            params[1] * f.x + params[0] * f.y + params[3]);
@@ -288,18 +313,52 @@ double ViewRegistration::FitAndMeasure() {
   const auto residual = [&](const Found& f) {
     return (displacement(f) - Eigen::Vector2d(f.dx, f.dy)).norm();
   };
-  for (const double floor_px : {1.5, 0.75}) {
-    m = 0;
-    for (int i = 0; i < n; ++i) {
-      if (found_[i].ok) a[m++] = residual(found_[i]);
+  // A shift (one patch) is preferred to a roll or zoom (two) unless that is
+  // clearly better: a small zoom can pass near two clusters of patches (the
+  // view, and a repetitive texture a period off) at once.
+  double most_shift = -1.0, most = -1.0;
+  Eigen::Vector4d best_shift = params, best = params;
+  for (int i = 0; i < n; ++i) {
+    if (!found_[i].ok) continue;
+    for (int j = i; j < n; ++j) {
+      if (!found_[j].ok) continue;
+      const Found& a = found_[i];
+      const Found& b = found_[j];
+      // q = z p + t in complex numbers, q = p + d; one patch: a shift only.
+      const std::complex<double> pa(a.x, a.y), pb(b.x, b.y);
+      const std::complex<double> qa = pa + std::complex<double>(a.dx, a.dy);
+      const std::complex<double> qb = pb + std::complex<double>(b.dx, b.dy);
+      const std::complex<double> z = i == j ? 1.0 : (qa - qb) / (pa - pb);
+      const std::complex<double> t = qa - z * pa;
+      const double s = z.real() - 1.0, r = z.imag(), tx = t.real(), ty = t.imag();
+      double support = 0.0;
+      for (int k = 0; k < n; ++k) {
+        const Found& f = found_[k];
+        const double ex = s * f.x - r * f.y + tx - f.dx;
+        const double ey = r * f.x + s * f.y + ty - f.dy;
+        if (f.ok && ex * ex + ey * ey <= kAgreePx * kAgreePx) support += f.ambiguous ? 0.5 : 1.0;
+      }
+      params = {s, r, tx, ty};
+      if (i == j && support > most_shift) {
+        most_shift = support;
+        best_shift = params;
+      } else if (i != j && support > most) {
+        most = support;
+        best = params;
+      }
     }
-    const double limit = std::max(floor_px, 3.0 * Median(a.data(), m));
+  }
+  params = most > kPreferShift * most_shift ? best : best_shift;
+  // Refined by least squares over the patches that agree with it (a shift
+  // stays a shift).
+  const bool shift_only = most <= kPreferShift * most_shift;
+  for (int round = 0; round < 2; ++round) {
     Eigen::Matrix4d normal = Eigen::Matrix4d::Zero();
     Eigen::Vector4d rhs = Eigen::Vector4d::Zero();
     int kept = 0;
     for (int i = 0; i < n; ++i) {
       const Found& f = found_[i];
-      if (!f.ok || residual(f) > limit) continue;
+      if (!f.ok || residual(f) > kAgreePx) continue;
       // Rows of the two equations, in units of a thousand pixels for p.
       const Eigen::Vector4d row_x(f.x * 1e-3, -f.y * 1e-3, 1.0, 0.0);
       const Eigen::Vector4d row_y(f.y * 1e-3, f.x * 1e-3, 0.0, 1.0);
@@ -307,13 +366,20 @@ double ViewRegistration::FitAndMeasure() {
       rhs += row_x * f.dx + row_y * f.dy;
       ++kept;
     }
-    inliers_ = kept;
-    if (kept < kFewPatches) return -1.0;
-    Eigen::Vector4d solved = normal.ldlt().solve(rhs);
-    solved[0] *= 1e-3;
-    solved[1] *= 1e-3;
-    params = solved;
+    if (kept < 3) break;  // Too few to tell a roll or zoom apart: as it is.
+    if (shift_only) {
+      params[2] = rhs[2] / kept;
+      params[3] = rhs[3] / kept;
+    } else {
+      Eigen::Vector4d solved = normal.ldlt().solve(rhs);
+      solved[0] *= 1e-3;
+      solved[1] *= 1e-3;
+      params = solved;
+    }
   }
+  inliers_ = 0;
+  for (int i = 0; i < n; ++i) inliers_ += found_[i].ok && residual(found_[i]) <= kAgreePx ? 1 : 0;
+  if (inliers_ < needed) return -1.0;
   // The largest displacement at any patch's place: the patches spread over
   // the view, so this is about the largest anywhere in it.
   double largest = 0.0;

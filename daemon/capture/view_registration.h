@@ -15,17 +15,20 @@ namespace hg::capture {
 /// Measures how far a camera's view has turned, rolled or zoomed since its
 /// reference view, to a fraction of a pixel, for kMono and kRgb frames.
 ///
-/// The reference view is the average of the first frames (Accumulate(), then
-/// TakeReference()). In it, up to kMaxPatches textured patches of 16 x 16
-/// pixels are chosen, the best corner (Shi-Tomasi: the structure tensor's
+/// The reference view is the average of one or more frames (Accumulate(),
+/// then TakeReference()). In it, up to kMaxPatches textured patches of 16 x
+/// 16 pixels are chosen, the best corner (Shi-Tomasi: the structure tensor's
 /// smaller eigenvalue) of each cell of a grid over the image, so that they
 /// spread over the view. Measure() finds each patch again in a frame, within
-/// kSearchPx pixels (normalised cross-correlation, coarse at half resolution,
-/// refined at full, sub-pixel by a parabola through the scores). Patches that
-/// do not match well are left out: a person in front of them, or the
-/// background changed. A similarity transform (shift, roll, zoom) is fitted to
-/// the displacements of the rest, with outliers trimmed, and the misalignment
-/// is the largest displacement it gives at any patch's place.
+/// kSearchPx pixels (normalised cross-correlation, coarse at half
+/// resolution, refined at full, sub-pixel by a parabola through the scores).
+/// Patches that do not match well are left out: a person in front of them,
+/// or the background changed. Of the similarity transforms (shift, roll,
+/// zoom) that pairs of the rest give, the one most patches agree with (those
+/// that match nearly as well a few pixels away, a repetitive texture such as
+/// a rack, a grating or tiles, count half) is refined by least squares over
+/// them; at least a quarter of the patches (and kFewPatches) must agree. The
+/// misalignment is the largest displacement it gives at any patch's place.
 ///
 /// Normalised correlation ignores gain and offset, so a change of light does
 /// not read as a move. Buffers are sized on the first frame; TakeReference()
@@ -39,11 +42,21 @@ class ViewRegistration {
   static constexpr int kFewPatches = 8;
   /// Correlation below which a patch counts as not found.
   static constexpr double kMinCorrelation = 0.8;
+  /// A second peak of the coarse search within this much of the best one
+  /// makes a patch ambiguous (a repetitive texture): it counts half when
+  /// patches vote on the shift.
+  static constexpr double kAmbiguityMargin = 0.05;
+  /// Displacements this close (pixels) agree; so do a patch and a fit.
+  static constexpr double kAgreePx = 1.0;
+  /// A roll or zoom is taken over a plain shift when this many times as many
+  /// patches agree with it.
+  static constexpr double kPreferShift = 1.25;
 
-  /// Adds a frame to the reference view.
+  /// Adds a frame to the reference view (the first one after a
+  /// TakeReference() allocates the sums, 2 bytes a pixel).
   void Accumulate(const Frame& frame);
   /// Averages the frames accumulated into the reference view and chooses its
-  /// patches. Returns how many were chosen.
+  /// patches; the sums are released. Returns how many patches were chosen.
   int TakeReference();
   /// Patches of the reference view (0 before TakeReference()).
   [[nodiscard]] int patches() const { return static_cast<int>(patches_.size()); }
@@ -72,10 +85,18 @@ class ViewRegistration {
     double x = 0, y = 0;    // Patch centre, pixels from the image centre.
     double dx = 0, dy = 0;  // Displacement.
     bool ok = false;
+    bool ambiguous = false;  // A second peak nearly as high.
   };
+
+  struct Candidate {
+    double score = 0;
+    int x0 = -1, y0 = -1;
+  };
+  static constexpr int kCandidatesPerCell = 4;
 
   void Size(int width, int height);
   void ReadRegion(const Frame& frame, int x0, int y0);
+  /// The misalignment from the patches found; negative when too few agree.
   [[nodiscard]] double FitAndMeasure();
 
   int width_ = 0, height_ = 0;
@@ -85,6 +106,8 @@ class ViewRegistration {
   std::array<float, kRegionPx * kRegionPx> region_{};
   std::array<float, kHalfRegion * kHalfRegion> region_half_{};
   std::array<Found, kMaxPatches> found_{};
+  Patch scratch_patch_;
+  std::array<float, (kSearchPx + 1) * (kSearchPx + 1)> coarse_{};  // Half-resolution scores.
   int matched_ = 0, inliers_ = 0;
 };
 

@@ -321,30 +321,45 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
             c.model.name, c.health_monitor.reference_patches());
       }
     }
-    if (c.taught_told == 1 || c.taught_told == 2) {
+    const capture::CameraHealthMonitor& m = c.health_monitor;
+    if (c.taught_pending_told && !m.awaiting_taught_view()) {
       // What became of the registration against the taught view, told once.
-      const capture::CameraHealthMonitor& m = c.health_monitor;
+      c.taught_pending_told = false;
       if (m.moved_since_taught()) {
-        c.taught_told = 3;
         log::Error(
             "{}: its view is {:.1f} px off the view its kept background was taught in: the "
             "camera moved while hullguardd was stopped, so its calibration no longer holds; it "
             "sees nothing (failed, moved) until it is recalibrated and its background taught "
             "again",
             c.model.name, m.misalignment_px());
-      } else if (!m.awaiting_taught_view()) {
-        c.taught_told = 3;
+      } else {
         log::Info("{}: its view matches the view its background was taught in ({:.2f} px)",
                   c.model.name, m.misalignment_px());
-      } else if (c.taught_told == 1 && m.taught_frames() >= kTaughtPatienceFrames) {
-        c.taught_told = 2;
+      }
+    }
+    if (m.shifted_frames() == 0) {
+      c.unmatched_told = false;
+    } else if (!c.unmatched_told && m.shifted_frames() >= kUnmatchedPatienceFrames) {
+      c.unmatched_told = true;  // Once per spell.
+      if (m.awaiting_taught_view()) {
         log::Warn(
             "{}: after {} frames its view still cannot be matched to the view its kept "
             "background was taught in (too little of it found: people in front of the camera, "
             "the cell rearranged, or the camera moved further than 12 px); its frames are not "
             "used until it is. If the camera was moved, recalibrate it and teach its background "
             "again",
-            c.model.name, m.taught_frames());
+            c.model.name, m.shifted_frames());
+      } else if (m.misalignment_px() >= 0.0) {
+        log::Warn(
+            "{}: for {} frames its view has been {:.1f} px off its reference view; its frames "
+            "are not used until it is back in place",
+            c.model.name, m.shifted_frames(), m.misalignment_px());
+      } else {
+        log::Warn(
+            "{}: for {} frames its view has not been found where it was (moved by more than 12 "
+            "px, or covered, or too dark to tell); its frames are not used until it is. If the "
+            "camera was moved, recalibrate it",
+            c.model.name, m.shifted_frames());
       }
     }
     if (fault != capture::CameraFault::kNone) return;
@@ -395,7 +410,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
           }
         }
         c.health_monitor.SetTaughtView(taught);
-        c.taught_told = c.health_monitor.awaiting_taught_view() ? 1 : 3;
+        c.taught_pending_told = c.health_monitor.awaiting_taught_view();
       } else if (options_.background_start == Start::kKeptOnly) {
         c.unlearned = true;
         log::Error(

@@ -197,9 +197,10 @@ class Pipeline {
   /// At least this share of a camera's view foreground after its background
   /// model counts as mostly foreground (ForegroundHeavySince()).
   static constexpr double kHeavyForegroundShare = 1.0 / 3.0;
-  /// Frames a camera that took up a kept background may wait for its view to
-  /// be matched to the one the background was taught in before a warning.
-  static constexpr int kTaughtPatienceFrames = 150;
+  /// Frames a camera's view may stay unmatched to its reference (or to the
+  /// view its kept background was taught in), its frames unused, before a
+  /// warning.
+  static constexpr int kUnmatchedPatienceFrames = 150;
   /// Since when every frame camera `camera`'s background model classified
   /// (learning done) has been at least kHeavyForegroundShare foreground;
   /// nullopt while it is not, and for sources of masks. Long runs of it mean
@@ -244,9 +245,9 @@ class Pipeline {
     // Silhouette work (one worker at a time).
     capture::CameraHealthMonitor health_monitor;
     bool reference_logged = false;  // Whether a view without edges was reported.
-    // The registration against the kept background's view: 0 none, 1
-    // pending, 2 pending and its slowness told, 3 settled and told.
-    int taught_told = 0;
+    // The view is to be matched to its kept background's; its outcome untold.
+    bool taught_pending_told = false;
+    bool unmatched_told = false;  // The current spell of an unmatched view was told.
     common::ImageU8 foreground;
     silhouette::DilateScratch dilate_scratch;                 // DilateSquare of the foreground.
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.

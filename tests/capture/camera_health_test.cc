@@ -79,7 +79,7 @@ TEST(CameraHealthTest, PeopleWalkingAreNoFaultAndATurnedCameraIsMoved) {
     if (monitor.Check(bumped.At(i)) == CameraFault::kMoved && first_moved < 0) first_moved = i;
   }
   ASSERT_GE(first_moved, 0) << "edges kept " << monitor.edges_kept();
-  EXPECT_LE(first_moved, 60 + options.moved_frames + 1);
+  EXPECT_LE(first_moved, 60 + options.moved_checks + 1);
   // Moved stays until a reset, even if the view happens to look right again.
   EXPECT_EQ(monitor.Check(installed.At(90)), CameraFault::kMoved);
   monitor.Reset();
@@ -135,7 +135,7 @@ TEST_P(RegistrationTest, MovesSmallerThanTheGridAreFound) {
       ++measured;
     }
   }
-  EXPECT_GE(still.reference_patches(), 30);
+  EXPECT_GE(still.reference_patches(), 20);
   EXPECT_GE(measured, 40) << "most registrations should tell";
   EXPECT_LT(largest, 0.5);
   for (const Move& move :
@@ -169,6 +169,96 @@ INSTANTIATE_TEST_SUITE_P(Frames, RegistrationTest, ::testing::Values(false, true
                          [](const ::testing::TestParamInfo<bool>& param) {
                            return param.param ? "BayerMosaic" : "Rgb";
                          });
+
+// A knock that turns the view farther than registration looks (3 degrees:
+// about 27 px here): the edges are lost at once, the view is found nowhere,
+// and its frames are not used from the first one on.
+TEST(CameraHealthTest, ALargeMoveStopsTheFramesAtOnce) {
+  Camera installed(0.0), knocked(3.0);
+  CameraHealthMonitor monitor;
+  for (int i = 0; i < 30; ++i) ASSERT_EQ(monitor.Check(installed.At(i)), CameraFault::kNone);
+  for (int i = 30; i < 60; ++i) {
+    const CameraFault fault = monitor.Check(knocked.At(i));
+    EXPECT_TRUE(monitor.shifted() || fault == CameraFault::kMoved) << "frame " << i;
+  }
+}
+
+// A camera turned while its edge reference is still being averaged (frame
+// 5 of 10): registration's reference is the first frame, so it is found.
+TEST(CameraHealthTest, AMoveWhileTheReferenceIsTakenIsFound) {
+  Camera installed(0.0), turned(0.4);
+  CameraHealthMonitor monitor;
+  const CameraHealthOptions options;
+  for (int i = 0; i < 5; ++i) ASSERT_EQ(monitor.Check(installed.At(i)), CameraFault::kNone);
+  int first_moved = -1;
+  for (int i = 5; i < 60 && first_moved < 0; ++i) {
+    if (monitor.Check(turned.At(i)) == CameraFault::kMoved) first_moved = i;
+    if (i > 5 + options.shift_check_every) {
+      EXPECT_TRUE(monitor.shifted()) << "frame " << i;
+    }
+  }
+  EXPECT_GE(first_moved, 0);
+  EXPECT_LE(first_moved, 5 + options.shift_check_every * (options.moved_checks + 1));
+}
+
+// A view dimmed to a quarter, or covered for the most part (someone at the
+// lens), loses its edges but is no move: registration finds it in place, or,
+// covered, cannot tell and holds its frames back until it sees the view
+// again. Neither latches "moved".
+TEST(CameraHealthTest, ADimmedOrCoveredViewIsNoMove) {
+  Camera installed(0.0);
+  CameraHealthMonitor monitor;
+  int i = 0;
+  for (; i < 30; ++i) ASSERT_EQ(monitor.Check(installed.At(i)), CameraFault::kNone);
+  for (; i < 60; ++i) {
+    Frame frame = installed.At(i);
+    for (std::uint8_t& p : frame.rgb.pixels) p = static_cast<std::uint8_t>(p / 4 + 10);
+    EXPECT_EQ(monitor.Check(frame), CameraFault::kNone) << "dimmed, frame " << i;
+    EXPECT_FALSE(monitor.shifted()) << "dimmed, frame " << i;
+    EXPECT_LT(monitor.edges_kept(), CameraHealthOptions{}.min_edges_kept) << "frame " << i;
+  }
+  for (; i < 90; ++i) {
+    Frame frame = installed.At(i);
+    for (int v = 0; v < frame.rgb.height; ++v) {
+      for (int u = 0; u < frame.rgb.width * 8 / 10; ++u) {
+        std::uint8_t* p = frame.rgb.Pixel(u, v);
+        p[0] = p[1] = p[2] = static_cast<std::uint8_t>(90 + (u + v) % 3);
+      }
+    }
+    EXPECT_NE(monitor.Check(frame), CameraFault::kMoved) << "covered, frame " << i;
+  }
+  for (; i < 100; ++i) ASSERT_NE(monitor.Check(installed.At(i)), CameraFault::kMoved);
+  EXPECT_FALSE(monitor.shifted()) << "uncovered, the view is in place";
+  EXPECT_EQ(monitor.fault(), CameraFault::kNone);
+}
+
+// A rack of period 4 px over 40 % of the view: its patches match themselves
+// a period away, where a search could settle and read a move of the camera
+// that did not happen. They are passed over when the reference is taken.
+TEST(CameraHealthTest, ARepetitiveTextureIsNoMove) {
+  Camera installed(0.0);
+  auto with_rack = [](Frame frame) {
+    std::mt19937 rng(static_cast<std::uint32_t>(frame.index));
+    std::normal_distribution<double> noise(0.0, 2.0);
+    for (int v = 0; v < frame.rgb.height; ++v) {
+      for (int u = 0; u < frame.rgb.width * 4 / 10; ++u) {
+        const bool upright = u % 4 < 2;
+        const bool shelf = v % 12 < 2;
+        const double g = (upright ? 160 : 70) + (shelf ? 60 : 0) +
+                         20 * std::sin(u * 0.013 + v * 0.021) + noise(rng);
+        std::uint8_t* p = frame.rgb.Pixel(u, v);
+        p[0] = p[1] = p[2] = static_cast<std::uint8_t>(std::clamp(g, 0.0, 255.0));
+      }
+    }
+    return frame;
+  };
+  CameraHealthMonitor monitor;
+  for (int i = 0; i < 100; ++i) {
+    ASSERT_EQ(monitor.Check(with_rack(installed.At(i))), CameraFault::kNone) << "frame " << i;
+    ASSERT_FALSE(monitor.shifted()) << "frame " << i << ": " << monitor.misalignment_px() << " px";
+  }
+  EXPECT_GE(monitor.reference_patches(), ViewRegistration::kFewPatches);
+}
 
 TEST(CameraHealthTest, FrozenBlackAndSaturatedImages) {
   Camera camera(0.0);
