@@ -183,6 +183,11 @@ TEST_F(RecordCliTest, CameraWithoutFramesReplaysAsOneThatNeverDelivers) {
       << replay.out;
   EXPECT_GE(std::stoi(m[1]), 80) << replay.out;
   EXPECT_EQ(m[1], m[2]) << replay.out;
+  const std::string cycles = m[1];
+  // The camera's own line says what it was: without a frame in every cycle.
+  ASSERT_TRUE(std::regex_search(replay.out, m, std::regex("\n  cam2: starting ([0-9]+) cycles\n")))
+      << replay.out;
+  EXPECT_EQ(m[1], cycles) << replay.out;
 
   const auto daemon = testing::RunToolInNetns(
       HG_HULLGUARDD_BIN, "--config " + Path("replay.yaml") + " --duration 2.5");
@@ -268,6 +273,57 @@ TEST_F(RecordCliTest, SimColourCamerasShowTheirPeopleAfterTheEmptyPeriod) {
     largest = std::max(largest, std::abs(last.rgb.pixels[i] - first.rgb.pixels[i]));
   }
   EXPECT_GT(largest, 50) << "no people in the last frame, " << span_s << " s in";
+}
+
+// A camera bumped during a recording: cam0's frames from 1.5 s on are those
+// of the same cell recorded with cam0 aimed 15 cm aside at 4 m (about 5
+// pixels, under the 8-pixel edge grid), its calibration unchanged. The
+// replay finds its view shifted and the camera moved, and says so in its
+// line.
+TEST_F(RecordCliTest, ReplayTellsOfACameraBumpedDuringTheRecording) {
+  const std::string extra = "background: {learn_frames: 5}\n";
+  std::ofstream(Path("colour.yaml"))
+      << Config("{type: sim, scene: " + kScene + ", colour: true}", extra);
+  std::string scene = ReadFile(kScene);
+  const std::string aim = "look_at: [2, 2, 1]";
+  ASSERT_NE(scene.find(aim), std::string::npos);
+  scene.replace(scene.find(aim), aim.size(), "look_at: [2.15, 2, 1]");  // cam0's line.
+  std::ofstream(Path("bumped_scene.yaml")) << scene;
+  std::string bumped =
+      Config("{type: sim, scene: " + Path("bumped_scene.yaml") + ", colour: true}", extra);
+  bumped.replace(bumped.find(aim), aim.size(), "look_at: [2.15, 2, 1]");
+  std::ofstream(Path("bumped.yaml")) << bumped;
+  for (const char* name : {"colour", "bumped"}) {
+    const auto r = Hullguard(std::string("record --config ") + Path(std::string(name) + ".yaml") +
+                             " --out " + Path(std::string("rec_") + name) + " --seconds 3");
+    ASSERT_EQ(r.code, 0) << r.out << r.err;
+  }
+  const capture::RecordingCamera installed =
+      capture::ReadRecordingCamera(Path("rec_colour"), "cam0");
+  const capture::RecordingCamera moved = capture::ReadRecordingCamera(Path("rec_bumped"), "cam0");
+  int spliced = 0;
+  for (std::size_t i = 45; i < installed.frames.size() && i < moved.frames.size(); ++i) {
+    // `file` is the frame's path within the recording.
+    fs::copy_file(fs::path(Path("rec_bumped")) / moved.frames[i].file,
+                  fs::path(Path("rec_colour")) / installed.frames[i].file,
+                  fs::copy_options::overwrite_existing);
+    ++spliced;
+  }
+  ASSERT_GE(spliced, 30) << "too short a recording";
+  std::ofstream(Path("replay.yaml"))
+      << Config("{type: replay, directory: " + Path("rec_colour") + "}", extra);
+  const auto replay =
+      Hullguard("replay --config " + Path("replay.yaml") + " --recording " + Path("rec_colour"));
+  ASSERT_EQ(replay.code, 0) << replay.out << replay.err;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      replay.out, m,
+      std::regex("\n  cam0: [^\n]*moved from cycle ([0-9]+); view shifted in ([0-9]+) cycles; "
+                 "largest misalignment ([0-9.]+) px\n")))
+      << replay.out;
+  EXPECT_GE(std::stod(m[3]), 3.0) << replay.out;
+  EXPECT_EQ(replay.out.find("  cam1:"), std::string::npos) << replay.out;
+  EXPECT_EQ(replay.out.find("  cam2:"), std::string::npos) << replay.out;
 }
 
 // A frame that cannot be written (a folder stands where cam0's third frame

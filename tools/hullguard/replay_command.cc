@@ -19,6 +19,7 @@
 #include <Eigen/Core>
 
 #include "app/config.h"
+#include "app/health_line.h"
 #include "app/pipeline_setup.h"
 #include "capture/replay_source.h"
 #include "common/cli_checks.h"
@@ -82,6 +83,82 @@ void AddSnapshot(const pipeline::OccupancySnapshot& s, Digest* d) {
     d->AddValue(c.fault);
   }
 }
+
+// What became of each camera over a replay: cycles per state, the first
+// cycle of each fault, and the registrations that found its view shifted.
+// Thread-compatible.
+class CameraTally {
+ public:
+  explicit CameraTally(std::size_t cameras) : cameras_(cameras) {}
+  void Add(std::int64_t cycle, const pipeline::OccupancySnapshot& s) {
+    for (std::size_t c = 0; c < cameras_.size() && c < s.health.cameras.size(); ++c) {
+      const pipeline::CameraHealth& h = s.health.cameras[c];
+      Camera& t = cameras_[c];
+      t.name = h.name;
+      ++t.in_state[static_cast<std::size_t>(h.state)];
+      if (h.fault != 0 && h.fault < t.first_fault.size() && t.first_fault[h.fault] < 0) {
+        t.first_fault[h.fault] = cycle;
+      }
+      if (h.shifted) ++t.shifted;
+      t.largest_px = std::max(t.largest_px, h.misalignment_px);
+    }
+  }
+  // Cycles counted, not run, in a silence of every camera: all stale.
+  void AddSilence(std::int64_t cycles) {
+    for (Camera& t : cameras_) {
+      t.in_state[static_cast<std::size_t>(pipeline::CameraState::kStale)] +=
+          static_cast<std::uint64_t>(cycles);
+    }
+  }
+  // One line per camera that was not ok after it started, or was shifted.
+  void Print() const {
+    for (const Camera& t : cameras_) {
+      const std::size_t ok = static_cast<std::size_t>(pipeline::CameraState::kOk);
+      const std::size_t starting = static_cast<std::size_t>(pipeline::CameraState::kStarting);
+      std::uint64_t troubled = 0;
+      for (std::size_t k = 0; k < t.in_state.size(); ++k) {
+        if (k != ok && k != starting) troubled += t.in_state[k];
+      }
+      if (troubled == 0 && t.shifted == 0 && t.in_state[ok] > 0) continue;
+      std::string line = "  " + t.name + ":";
+      const char* sep = " ";
+      for (std::size_t k = 0; k < t.in_state.size(); ++k) {
+        if (t.in_state[k] == 0) continue;
+        line += sep;
+        line += app::StateName(static_cast<pipeline::CameraState>(k));
+        line += " " + std::to_string(t.in_state[k]);
+        sep = ", ";
+      }
+      line += " cycles";
+      for (std::size_t f = 1; f < t.first_fault.size(); ++f) {
+        if (t.first_fault[f] < 0) continue;
+        line += std::string("; ") + capture::ToString(static_cast<capture::CameraFault>(f)) +
+                " from cycle " + std::to_string(t.first_fault[f]);
+      }
+      if (t.shifted > 0) {
+        char part[96];
+        std::snprintf(part, sizeof(part), "; view shifted in %" PRIu64 " cycles", t.shifted);
+        line += part;
+      }
+      if (t.largest_px >= 0.0) {
+        char part[96];
+        std::snprintf(part, sizeof(part), "; largest misalignment %.2f px", t.largest_px);
+        line += part;
+      }
+      std::printf("%s\n", line.c_str());
+    }
+  }
+
+ private:
+  struct Camera {
+    std::string name;
+    std::array<std::uint64_t, 4> in_state{};  // By pipeline::CameraState.
+    std::array<std::int64_t, 8> first_fault{-1, -1, -1, -1, -1, -1, -1, -1};
+    std::uint64_t shifted = 0;
+    double largest_px = -1.0;
+  };
+  std::vector<Camera> cameras_;
+};
 
 // Ground truth check of a synth recording: points sampled inside every person
 // of truth frame i are looked up in the snapshot of frame set i. A point
@@ -361,6 +438,7 @@ int RunReplay(const ReplayFlags& f) {
   pipeline::Pipeline pipeline(options, std::move(cameras), app::LoadObstacles(config), nullptr);
 
   Digest digest;
+  CameraTally tally(config.cameras.size());
   capture::Frame frame;
   std::uint64_t missing = 0, degraded = 0;
   std::shared_ptr<const pipeline::OccupancySnapshot> last;
@@ -388,6 +466,7 @@ int RunReplay(const ReplayFlags& f) {
       }
       last = pipeline.Step(newest);
       degraded += last->health.degraded ? 1 : 0;
+      tally.Add(i, *last);
       AddSnapshot(*last, &digest);
       if (truth) {
         // The occupancy holds for its stamp (docs/dds.md): checked against
@@ -401,6 +480,7 @@ int RunReplay(const ReplayFlags& f) {
     std::printf("replay: %d frame sets of %zu cameras, %" PRIu64
                 " frames missing or unreadable, %" PRIu64 " cycles degraded\n",
                 frames, readers.size(), missing, degraded);
+    tally.Print();
     if (truth) {
       std::printf(
           "ground truth: %" PRId64 " points inside people over %d frame sets, %" PRId64
@@ -446,6 +526,7 @@ int RunReplay(const ReplayFlags& f) {
       }
       last = pipeline.Step(now_ns);
       degraded += last->health.degraded ? 1 : 0;
+      tally.Add(k, *last);
       AddSnapshot(*last, &digest);
       const bool all_stale = std::none_of(last->health.cameras.begin(), last->health.cameras.end(),
                                           [](const pipeline::CameraHealth& h) {
@@ -468,6 +549,7 @@ int RunReplay(const ReplayFlags& f) {
         if (const std::int64_t n = before - 1 - k; n > 0) {
           skipped += n;
           degraded += static_cast<std::uint64_t>(n);
+          tally.AddSilence(n);
           k = before - 1;
         }
       }
@@ -479,6 +561,7 @@ int RunReplay(const ReplayFlags& f) {
       std::printf(" (%" PRId64 " of them in silences of every camera, counted, not run)", skipped);
     }
     std::printf("\n");
+    tally.Print();
   }
   if (f.digest || !f.expect.empty()) std::printf("digest %s\n", digest.Hex().c_str());
   if (!f.snapshot.empty() && last) {
