@@ -485,7 +485,9 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
     {.key = "dilate_px",
      .member = &BackgroundConfig::dilate_px,
      .meaning = "The foreground is grown by this many pixels, so that a person's pixel whose "
-                "colour matches the background is covered by its neighbours.",
+                "colour matches the background is covered by its neighbours. Half of it (at "
+                "least 1 px) is the shift of a camera's view tolerated before its frames stop "
+                "being used (docs/cameras.md, a camera that moved).",
      .limits = {0, 50}},
     {.key = "keep_dir",
      .member = &BackgroundConfig::keep_dir,
