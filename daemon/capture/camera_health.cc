@@ -48,6 +48,7 @@ void CameraHealthMonitor::Reset() {
   shift_run_ = 0;
   misalignment_px_ = -1.0;
   shifted_ = false;
+  edges_in_place_ = -1.0;
   taught_.Reset();
   taught_pending_ = false;
   taught_agree_ = taught_differ_ = 0;
@@ -202,7 +203,10 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
         kept += EdgeAt(img, static_cast<int>(i) % cols_, static_cast<int>(i) / cols_) ? 1 : 0;
       }
       edges_kept_ = static_cast<double>(kept) / static_cast<double>(reference_edges_.size());
-      edges_lost = edges_kept_ < options_.min_edges_kept;
+      // Lost: most of them gone, or clearly fewer than while the view was
+      // last found in place (people walking hide some all the time).
+      edges_lost = edges_kept_ < options_.min_edges_kept ||
+                   (edges_in_place_ >= 0.0 && edges_kept_ < edges_in_place_ - kEdgesDrop);
     }
     // Registration every few frames, and at once when the edges are lost:
     // it tells a move (beyond registration's reach: found nowhere) from a
@@ -222,6 +226,12 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
         shifted_ = px > options_.max_shift_px;
         shift_run_ = shifted_ ? shift_run_ + 1 : 0;
         if (shift_run_ >= options_.moved_checks) moved_ = true;
+        if (!shifted_ && !reference_edges_.empty() &&
+            reference_count_ >= options_.reference_frames) {
+          // The edges kept while in place, smoothed over registrations.
+          edges_in_place_ =
+              edges_in_place_ < 0.0 ? edges_kept_ : 0.9 * edges_in_place_ + 0.1 * edges_kept_;
+        }
       } else if (edges_lost) {
         // Too little found to tell, and the edges are gone: a move farther
         // than registration looks, or a view covered; not used either way,

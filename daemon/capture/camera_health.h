@@ -71,8 +71,9 @@ struct CameraHealthOptions {
 /// few are found, the registration tells nothing.
 ///
 /// The strong edges of the reference view (the first `reference_frames`
-/// averaged), sampled on a grid, back it up: a view that lost most of them
-/// is registered at once. Found in place, it was dimmed or covered (no
+/// averaged), sampled on a grid, back it up: a view that lost most of them,
+/// or clearly more than while it was last found in place, is registered at
+/// once. Found in place, it was dimmed or covered (no
 /// fault); found nowhere (a move beyond the kSearchPx registration looks
 /// for), it is shifted until a registration finds it in place again.
 /// A camera whose calibration no longer holds must not certify anything
@@ -137,6 +138,10 @@ class CameraHealthMonitor {
   /// Registrations within max_shift_px of the taught view, in a row, that
   /// pass the camera (SetTaughtView()).
   static constexpr int kTaughtMatches = 2;
+  /// Edges kept this much below their share while the view was last found
+  /// in place count as lost: a move just beyond registration's reach keeps
+  /// about half of them, more than min_edges_kept.
+  static constexpr double kEdgesDrop = 0.15;
   /// Fewer reference edges than this: the camera cannot be checked for a move.
   static constexpr std::size_t kFewEdges = 16;
   /// Forgets the reference and every fault (after the camera was re-aimed).
@@ -180,6 +185,7 @@ class CameraHealthMonitor {
   bool moved_since_taught_ = false;
   bool has_registration_reference_ = false;
   int unmatched_frames_ = 0;
+  double edges_in_place_ = -1.0;  // Edges kept while found in place; -1: not yet.
   bool moved_ = false;
   double edges_kept_ = 1.0;
   CameraFault fault_ = CameraFault::kNone;
