@@ -675,6 +675,13 @@ sim::Scene WithCameraTurned(const sim::Scene& scene, double degrees) {
   return turned;
 }
 
+// Of 200 points sampled inside each of the (standing) people of `scene`, those
+// in cells `s` publishes free.
+int FreeOf200PerPerson(const sim::Scene& scene, const OccupancySnapshot& s) {
+  return testing::PointsInUnlistedCells(testing::PointsInPeople(scene, 0.0, 200, 5), s.bounds.min,
+                                        s.bounds.max, s.depth, {&s.occupied, &s.occluded});
+}
+
 // A camera turned by 0.8 degrees while people stand in the cell: its view
 // shifts by about 3.6 pixels, under the health monitor's edge grid (8 px) but
 // beyond what the foreground dilation (2 px) covers, so its silhouettes land
@@ -692,11 +699,7 @@ TEST(PipelineTest, ACameraTurnedByLessThanTheEdgeGridIsFoundMoved) {
   options.publish_depth = 7;
   options.background.learn_frames = 10;
   Pipeline pipeline(options, FedCameras(*scene), {}, nullptr);
-  auto reported_free = [&](const OccupancySnapshot& s) {
-    return testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 200, 5),
-                                          s.bounds.min, s.bounds.max, s.depth,
-                                          {&s.occupied, &s.occluded});
-  };
+  auto reported_free = [&](const OccupancySnapshot& s) { return FreeOf200PerPerson(*scene, s); };
   int i = 0;
   for (; i < options.background.learn_frames + 2; ++i) frames.Cycle(pipeline, i, false);
   for (; i < 40; ++i) {
@@ -764,9 +767,7 @@ TEST(PipelineTest, ATurnJustBeyondRegistrationsReachStopsTheFrames) {
     int free = 0;
     for (; i < 100; ++i) {
       const auto s = frames.Cycle(pipeline, i, true);
-      free += testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 200, 5),
-                                             s->bounds.min, s->bounds.max, s->depth,
-                                             {&s->occupied, &s->occluded});
+      free += FreeOf200PerPerson(*scene, *s);
     }
     EXPECT_EQ(free, 0);
   }
@@ -790,11 +791,7 @@ TEST(PipelineTest, ACameraMovedWhileStoppedIsFoundByItsKeptBackground) {
   options.publish_depth = 7;
   options.background.learn_frames = 8;
   options.background_dir = dir.string();
-  auto reported_free = [&](const OccupancySnapshot& s) {
-    return testing::PointsInUnlistedCells(testing::PointsInPeople(*scene, 0.0, 200, 5),
-                                          s.bounds.min, s.bounds.max, s.depth,
-                                          {&s.occupied, &s.occluded});
-  };
+  auto reported_free = [&](const OccupancySnapshot& s) { return FreeOf200PerPerson(*scene, s); };
   {  // Taught with the cell empty, in the calibrated view.
     StillColourFrames frames(*scene);
     Pipeline first(options, FedCameras(*scene), {}, nullptr);
