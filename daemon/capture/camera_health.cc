@@ -49,6 +49,7 @@ void CameraHealthMonitor::Reset() {
   misalignment_px_ = -1.0;
   shifted_ = false;
   edges_in_place_ = -1.0;
+  glance_next_ = 0;
   taught_.Reset();
   taught_pending_ = false;
   taught_agree_ = taught_differ_ = 0;
@@ -211,11 +212,21 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
     // Registration every few frames, and at once when the edges are lost:
     // it tells a move (beyond registration's reach: found nowhere) from a
     // dimmed or covered view (found in place).
-    if (!registered && (++frames_since_check_ >= options_.shift_check_every || edges_lost)) {
+    // Between registrations, a glance at a few patches, in turn: a move
+    // that they show is registered on its first frame.
+    ViewRegistration& reference = active_ == Reference::kFirstFrame ? first_frame_
+                                  : active_ == Reference::kAveraged ? averaged_
+                                                                    : taught_;
+    bool due = false;
+    if (!registered) {
+      due = ++frames_since_check_ >= options_.shift_check_every || edges_lost;
+      if (!due && reference.patches() > 0) {
+        due = reference.Glance(frame, glance_next_, kGlancePatches, options_.max_shift_px);
+        glance_next_ = (glance_next_ + kGlancePatches) % reference.patches();
+      }
+    }
+    if (due) {
       frames_since_check_ = 0;
-      ViewRegistration& reference = active_ == Reference::kFirstFrame ? first_frame_
-                                    : active_ == Reference::kAveraged ? averaged_
-                                                                      : taught_;
       const double px = reference.Measure(frame);
       if (px > options_.max_shift_px && reference_count_ < options_.reference_frames) {
         shift_while_averaging_ = true;

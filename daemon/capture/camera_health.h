@@ -65,11 +65,12 @@ struct CameraHealthOptions {
 /// reference view: the first frame, or, once the camera's view is found to
 /// match it, the view its kept background was taught in (SetTaughtView()).
 /// Textured patches of the reference are found again to a fraction of a
-/// pixel every `shift_check_every` frames; a shift, roll or zoom of more than
-/// `max_shift_px` anywhere in the view makes the camera shifted() (its frames
-/// are not to be used) at once, and `moved_checks` such registrations in a
-/// row make it moved. People in front of patches leave them out; when too
-/// few are found, the registration tells nothing.
+/// pixel every `shift_check_every` frames, and at once when a glance at a
+/// few of them (kGlancePatches, in turn, on the frames between) finds some
+/// moved; a shift, roll or zoom of more than `max_shift_px` anywhere in the
+/// view makes the camera shifted() (its frames are not to be used) at once,
+/// and `moved_checks` such registrations in a row make it moved. People in front of patches leave
+/// them out; when too few are found, the registration tells nothing.
 ///
 /// The strong edges of the reference view (the first `reference_frames`
 /// averaged), sampled on a grid, back it up: a view that lost most of them,
@@ -143,6 +144,8 @@ class CameraHealthMonitor {
   /// in place count as lost: a move just beyond registration's reach keeps
   /// about half of them, more than min_edges_kept.
   static constexpr double kEdgesDrop = 0.15;
+  /// Patches glanced at in each frame between two registrations.
+  static constexpr int kGlancePatches = 8;
   /// Fewer reference edges than this: the camera cannot be checked for a move.
   static constexpr std::size_t kFewEdges = 16;
   /// Forgets the reference and every fault (after the camera was re-aimed).
@@ -187,6 +190,7 @@ class CameraHealthMonitor {
   bool has_registration_reference_ = false;
   int unmatched_frames_ = 0;
   double edges_in_place_ = -1.0;  // Edges kept while found in place; -1: not yet.
+  int glance_next_ = 0;           // First patch of the next glance.
   bool moved_ = false;
   double edges_kept_ = 1.0;
   CameraFault fault_ = CameraFault::kNone;

@@ -209,91 +209,107 @@ void ViewRegistration::ReadRegion(const Frame& frame, int x0, int y0) {
 
 double ViewRegistration::Measure(const Frame& frame) {
   matched_ = inliers_ = 0;
-  const bool rgb = frame.kind == FrameKind::kRgb;
-  if (patches_.empty() || (rgb ? frame.rgb.width : frame.grey.width) != width_ ||
-      (rgb ? frame.rgb.height : frame.grey.height) != height_) {
-    return -1.0;
-  }
-  for (std::size_t i = 0; i < patches_.size(); ++i) {
-    const Patch& patch = patches_[i];
-    Found& found = found_[i];
-    found = {};
-    found.x = patch.x0 + 0.5 * kPatchPx - 0.5 * width_;
-    found.y = patch.y0 + 0.5 * kPatchPx - 0.5 * height_;
-    ReadRegion(frame, patch.x0 - kMargin, patch.y0 - kMargin);
-    // Coarse: every shift of up to kSearchPx, in steps of two pixels.
-    constexpr int kHalfSearch = kSearchPx / 2;
-    constexpr int kHalfMargin = kMargin / 2;
-    constexpr int kCoarseSide = 2 * kHalfSearch + 1;
-    double best = -2.0;
-    int dx = 0, dy = 0;
-    for (int oy = -kHalfSearch; oy <= kHalfSearch; ++oy) {
-      for (int ox = -kHalfSearch; ox <= kHalfSearch; ++ox) {
-        const double s = Correlation(patch.half.data(), kHalfPatch, region_half_.data(),
-                                     kHalfRegion, kHalfMargin + ox, kHalfMargin + oy);
-        coarse_[static_cast<std::size_t>(oy + kHalfSearch) * kCoarseSide + ox + kHalfSearch] =
-            static_cast<float>(s);
-        if (s > best) {
-          best = s;
-          dx = 2 * ox;
-          dy = 2 * oy;
-        }
-      }
-    }
-    // A repetitive texture (a rack, a grating) matches nearly as well a
-    // period away, where the search could settle and read a move that did
-    // not happen: a second peak nearly as high leaves the patch out.
-    bool ambiguous = false;
-    for (int y = 0; y < kCoarseSide && !ambiguous; ++y) {
-      for (int x = 0; x < kCoarseSide && !ambiguous; ++x) {
-        if (std::abs(2 * (x - kHalfSearch) - dx) <= 2 &&
-            std::abs(2 * (y - kHalfSearch) - dy) <= 2) {
-          continue;  // The best peak itself.
-        }
-        const float c = coarse_[static_cast<std::size_t>(y) * kCoarseSide + x];
-        if (c < best - kAmbiguityMargin) continue;
-        bool peak = true;  // A local maximum (the border counts as lower).
-        for (int k = 0; k < 9 && peak; ++k) {
-          const int nx = x + k % 3 - 1, ny = y + k / 3 - 1;
-          if (k == 4 || nx < 0 || ny < 0 || nx >= kCoarseSide || ny >= kCoarseSide) continue;
-          peak = c >= coarse_[static_cast<std::size_t>(ny) * kCoarseSide + nx];
-        }
-        ambiguous = peak;
-      }
-    }
-    found.ambiguous = ambiguous;
-    // Fine: climb to the best whole-pixel shift at full resolution.
-    const auto score = [&](int sx, int sy) {
-      return Correlation(patch.full.data(), kPatchPx, region_.data(), kRegionPx, kMargin + sx,
-                         kMargin + sy);
-    };
-    std::array<double, 9> around{};
-    bool peak = false;
-    for (int step = 0; step < 4 && !peak; ++step) {
-      int best_k = 4;
-      for (int k = 0; k < 9; ++k) {
-        around[k] = score(dx + k % 3 - 1, dy + k / 3 - 1);
-        if (around[k] > around[best_k]) best_k = k;
-      }
-      if (best_k == 4) {
-        peak = true;
-      } else {
-        dx += best_k % 3 - 1;
-        dy += best_k / 3 - 1;
-        if (std::abs(dx) > kSearchPx || std::abs(dy) > kSearchPx) break;
-      }
-    }
-    if (!peak || around[4] < kMinCorrelation) continue;
-    // Sub-pixel: a parabola through the scores on either side, each way.
-    const double curve_x = around[3] - 2.0 * around[4] + around[5];
-    const double curve_y = around[1] - 2.0 * around[4] + around[7];
-    if (curve_x >= 0.0 || curve_y >= 0.0) continue;
-    found.dx = dx + std::clamp(0.5 * (around[3] - around[5]) / curve_x, -0.5, 0.5);
-    found.dy = dy + std::clamp(0.5 * (around[1] - around[7]) / curve_y, -0.5, 0.5);
-    found.ok = true;
-    ++matched_;
-  }
+  if (patches_.empty() || !FitsFrame(frame)) return -1.0;
+  for (std::size_t i = 0; i < patches_.size(); ++i) matched_ += Find(frame, i) ? 1 : 0;
   return FitAndMeasure();
+}
+
+bool ViewRegistration::Glance(const Frame& frame, int first, int count, double beyond_px) {
+  if (patches_.empty() || !FitsFrame(frame)) return false;
+  int moved = 0;
+  const int n = patches();
+  for (int k = 0; k < std::min(count, n); ++k) {
+    const auto i = static_cast<std::size_t>((first + k) % n);
+    // Patches of a repetitive texture count too: one settled a period off
+    // costs a registration, which tells.
+    if (Find(frame, i) && std::hypot(found_[i].dx, found_[i].dy) > beyond_px) ++moved;
+  }
+  return moved >= kGlanceAgree;
+}
+
+bool ViewRegistration::FitsFrame(const Frame& frame) const {
+  const bool rgb = frame.kind == FrameKind::kRgb;
+  return (rgb ? frame.rgb.width : frame.grey.width) == width_ &&
+         (rgb ? frame.rgb.height : frame.grey.height) == height_;
+}
+
+bool ViewRegistration::Find(const Frame& frame, std::size_t i) {
+  const Patch& patch = patches_[i];
+  Found& found = found_[i];
+  found = {};
+  found.x = patch.x0 + 0.5 * kPatchPx - 0.5 * width_;
+  found.y = patch.y0 + 0.5 * kPatchPx - 0.5 * height_;
+  ReadRegion(frame, patch.x0 - kMargin, patch.y0 - kMargin);
+  // Coarse: every shift of up to kSearchPx, in steps of two pixels.
+  constexpr int kHalfSearch = kSearchPx / 2;
+  constexpr int kHalfMargin = kMargin / 2;
+  constexpr int kCoarseSide = 2 * kHalfSearch + 1;
+  double best = -2.0;
+  int dx = 0, dy = 0;
+  for (int oy = -kHalfSearch; oy <= kHalfSearch; ++oy) {
+    for (int ox = -kHalfSearch; ox <= kHalfSearch; ++ox) {
+      const double s = Correlation(patch.half.data(), kHalfPatch, region_half_.data(), kHalfRegion,
+                                   kHalfMargin + ox, kHalfMargin + oy);
+      coarse_[static_cast<std::size_t>(oy + kHalfSearch) * kCoarseSide + ox + kHalfSearch] =
+          static_cast<float>(s);
+      if (s > best) {
+        best = s;
+        dx = 2 * ox;
+        dy = 2 * oy;
+      }
+    }
+  }
+  // A repetitive texture (a rack, a grating) matches nearly as well a
+  // period away, where the search could settle and read a move that did
+  // not happen: a second peak nearly as high leaves the patch out.
+  bool ambiguous = false;
+  for (int y = 0; y < kCoarseSide && !ambiguous; ++y) {
+    for (int x = 0; x < kCoarseSide && !ambiguous; ++x) {
+      if (std::abs(2 * (x - kHalfSearch) - dx) <= 2 && std::abs(2 * (y - kHalfSearch) - dy) <= 2) {
+        continue;  // The best peak itself.
+      }
+      const float c = coarse_[static_cast<std::size_t>(y) * kCoarseSide + x];
+      if (c < best - kAmbiguityMargin) continue;
+      bool peak = true;  // A local maximum (the border counts as lower).
+      for (int k = 0; k < 9 && peak; ++k) {
+        const int nx = x + k % 3 - 1, ny = y + k / 3 - 1;
+        if (k == 4 || nx < 0 || ny < 0 || nx >= kCoarseSide || ny >= kCoarseSide) continue;
+        peak = c >= coarse_[static_cast<std::size_t>(ny) * kCoarseSide + nx];
+      }
+      ambiguous = peak;
+    }
+  }
+  found.ambiguous = ambiguous;
+  // Fine: climb to the best whole-pixel shift at full resolution.
+  const auto score = [&](int sx, int sy) {
+    return Correlation(patch.full.data(), kPatchPx, region_.data(), kRegionPx, kMargin + sx,
+                       kMargin + sy);
+  };
+  std::array<double, 9> around{};
+  bool peak = false;
+  for (int step = 0; step < 4 && !peak; ++step) {
+    int best_k = 4;
+    for (int k = 0; k < 9; ++k) {
+      around[k] = score(dx + k % 3 - 1, dy + k / 3 - 1);
+      if (around[k] > around[best_k]) best_k = k;
+    }
+    if (best_k == 4) {
+      peak = true;
+    } else {
+      dx += best_k % 3 - 1;
+      dy += best_k / 3 - 1;
+      if (std::abs(dx) > kSearchPx || std::abs(dy) > kSearchPx) break;
+    }
+  }
+  if (!peak || around[4] < kMinCorrelation) return false;
+  // Sub-pixel: a parabola through the scores on either side, each way.
+  const double curve_x = around[3] - 2.0 * around[4] + around[5];
+  const double curve_y = around[1] - 2.0 * around[4] + around[7];
+  if (curve_x >= 0.0 || curve_y >= 0.0) return false;
+  found.dx = dx + std::clamp(0.5 * (around[3] - around[5]) / curve_x, -0.5, 0.5);
+  found.dy = dy + std::clamp(0.5 * (around[1] - around[7]) / curve_y, -0.5, 0.5);
+  found.ok = true;
+  return true;
 }
 
 double ViewRegistration::FitAndMeasure() {

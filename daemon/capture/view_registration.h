@@ -51,6 +51,8 @@ class ViewRegistration {
   /// A roll or zoom is taken over a plain shift when this many times as many
   /// patches agree with it.
   static constexpr double kPreferShift = 1.25;
+  /// Patches of a Glance() that must have moved.
+  static constexpr int kGlanceAgree = 2;
 
   /// Adds a frame to the reference view (the first one after a
   /// TakeReference() allocates the sums, 2 bytes a pixel).
@@ -65,6 +67,11 @@ class ViewRegistration {
   /// front of most of them, a view without texture, a shift beyond
   /// kSearchPx).
   [[nodiscard]] double Measure(const Frame& frame);
+  /// A quick look between registrations: patches `first` .. `first + count`
+  /// (round the list) are found again, and whether at least kGlanceAgree of
+  /// them moved by more than `beyond_px` is returned (a registration is then
+  /// due at once). Spoils matched() and inliers() until the next Measure().
+  [[nodiscard]] bool Glance(const Frame& frame, int first, int count, double beyond_px);
   /// Patches found in the last Measure(), and those the fit kept.
   [[nodiscard]] int matched() const { return matched_; }
   [[nodiscard]] int inliers() const { return inliers_; }
@@ -95,6 +102,9 @@ class ViewRegistration {
   static constexpr int kCandidatesPerCell = 4;
 
   void Size(int width, int height);
+  [[nodiscard]] bool FitsFrame(const Frame& frame) const;
+  /// Finds patch i in `frame` (found_[i]); whether it was found.
+  bool Find(const Frame& frame, std::size_t i);
   void ReadRegion(const Frame& frame, int x0, int y0);
   /// The misalignment from the patches found; negative when too few agree.
   [[nodiscard]] double FitAndMeasure();

@@ -183,6 +183,28 @@ TEST(CameraHealthTest, ALargeMoveStopsTheFramesAtOnce) {
   }
 }
 
+// A small turn between two registrations (which come every third frame) is
+// seen on its first frame by the glance at a few patches on the frames
+// between: that frame is not used, whichever frame of the three the turn
+// falls on.
+TEST(CameraHealthTest, AMoveBetweenRegistrationsIsCaughtOnItsFirstFrame) {
+  Camera installed(0.0), turned(0.2);  // About 1.6 px.
+  // No edges (a threshold no gradient reaches): only registration and the
+  // glances watch, so the edge grid cannot trigger a registration.
+  CameraHealthOptions options;
+  options.edge_threshold = 1000;
+  for (int phase = 0; phase < options.shift_check_every; ++phase) {
+    SCOPED_TRACE(phase);
+    CameraHealthMonitor monitor(options);
+    const int turn_at = 30 + phase;
+    for (int i = 0; i < turn_at; ++i) ASSERT_EQ(monitor.Check(installed.At(i)), CameraFault::kNone);
+    for (int i = turn_at; i < turn_at + 10; ++i) {
+      const CameraFault fault = monitor.Check(turned.At(i));
+      EXPECT_TRUE(monitor.shifted() || fault == CameraFault::kMoved) << "frame " << i;
+    }
+  }
+}
+
 // A camera turned while its edge reference is still being averaged (frame
 // 5 of 10): registration's reference is the first frame, so it is found.
 TEST(CameraHealthTest, AMoveWhileTheReferenceIsTakenIsFound) {
