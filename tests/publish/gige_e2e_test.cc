@@ -398,10 +398,14 @@ TEST_F(GigeE2E, CamerasServeTheDaemonThroughLossAndReconnection) {
       20s))
       << log();
 
-  // 2. Healthy: every camera ok, the people inside not-free cells.
+  // 2. Healthy: every camera ok, the people inside not-free cells. Twice as
+  // many cycles as the cameras' noise variants, so that what every variant
+  // of each camera carves is in some healthy cycle (with 15, a degraded
+  // cycle could meet a variant none of them had, and a cell only it carves).
   auto all_ok = [](const StatusSample& s) { return s.AllOk(); };
+  const std::size_t healthy_cycles = 2 * static_cast<std::size_t>(CellFrames::kVariants);
   ASSERT_TRUE(controller.Until(
-      [&] { return controller.OccupancyWhere(people_from, all_ok).size() >= 15; }, 30s))
+      [&] { return controller.OccupancyWhere(people_from, all_ok).size() >= healthy_cycles; }, 30s))
       << log();
   const std::vector<const OccupancySample*> healthy =
       controller.OccupancyWhere(people_from, all_ok);
