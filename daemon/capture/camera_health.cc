@@ -53,10 +53,9 @@ void CameraHealthMonitor::Reset() {
   taught_.Reset();
   taught_pending_ = false;
   taught_agree_ = taught_differ_ = 0;
-  taught_frames_ = 0;
   moved_since_taught_ = false;
   has_registration_reference_ = false;
-  unmatched_frames_ = 0;
+  shifted_frames_ = 0;
   moved_ = false;
   edges_kept_ = 1.0;
   fault_ = CameraFault::kNone;
@@ -87,7 +86,7 @@ void CameraHealthMonitor::Sample(const Frame& frame) {
     if (rgb) {
       for (int c = 0; c < cols_; ++c) {
         const std::uint8_t* p = frame.rgb.Pixel(c * step, v);
-        out[c] = static_cast<std::uint8_t>((77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8);
+        out[c] = static_cast<std::uint8_t>(common::Luma(p));
       }
     } else {
       const std::uint8_t* row = frame.grey.pixels.data() + static_cast<std::size_t>(v) * width;
@@ -111,7 +110,6 @@ void CameraHealthMonitor::SetTaughtView(const Frame& taught) {
   taught_.Accumulate(taught);
   taught_pending_ = taught_.TakeReference() >= ViewRegistration::kFewPatches;
   taught_agree_ = taught_differ_ = 0;
-  taught_frames_ = 0;
 }
 
 CameraFault CameraHealthMonitor::Check(const Frame& frame) {
@@ -141,7 +139,6 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
     bool registered = false;  // This frame was registered against the taught view.
     if (taught_pending_) {
       // Every frame until settled: the camera's frames wait meanwhile.
-      ++taught_frames_;
       const double taught_px = taught_.Measure(frame);
       registered = true;
       if (taught_px >= 0.0) {
@@ -214,9 +211,7 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
     // dimmed or covered view (found in place).
     // Between registrations, a glance at a few patches, in turn: a move
     // that they show is registered on its first frame.
-    ViewRegistration& reference = active_ == Reference::kFirstFrame ? first_frame_
-                                  : active_ == Reference::kAveraged ? averaged_
-                                                                    : taught_;
+    ViewRegistration& reference = active();
     bool due = false;
     if (!registered) {
       due = ++frames_since_check_ >= options_.shift_check_every || edges_lost;
@@ -252,7 +247,7 @@ CameraFault CameraHealthMonitor::Check(const Frame& frame) {
       // Otherwise (people in front of most patches) it tells nothing.
     }
   }
-  unmatched_frames_ = shifted() && !moved_ ? unmatched_frames_ + 1 : 0;
+  shifted_frames_ = shifted() && !moved_ ? shifted_frames_ + 1 : 0;
 
   if (moved_) {
     fault_ = CameraFault::kMoved;

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "capture/camera_source.h"
@@ -126,10 +127,8 @@ class CameraHealthMonitor {
   void SetTaughtView(const Frame& taught);
   /// The taught view is set and not yet matched (nor the camera found moved).
   [[nodiscard]] bool awaiting_taught_view() const { return taught_pending_; }
-  /// Frames registered against the taught view so far.
-  [[nodiscard]] int taught_frames() const { return taught_frames_; }
   /// Frames in a row the camera has been shifted() (0 once moved).
-  [[nodiscard]] int shifted_frames() const { return unmatched_frames_; }
+  [[nodiscard]] int shifted_frames() const { return shifted_frames_; }
   /// Whether the camera was found moved against its taught view.
   [[nodiscard]] bool moved_since_taught() const { return moved_since_taught_; }
   /// Frames a repeat is looked for among: a driver may cycle through its
@@ -175,6 +174,9 @@ class CameraHealthMonitor {
            : active_ == Reference::kAveraged ? averaged_
                                              : taught_;
   }
+  [[nodiscard]] ViewRegistration& active() {
+    return const_cast<ViewRegistration&>(std::as_const(*this).active());
+  }
   ViewRegistration first_frame_, averaged_;
   Reference active_ = Reference::kFirstFrame;
   bool shift_while_averaging_ = false;  // The first frame's reference stays.
@@ -185,10 +187,9 @@ class CameraHealthMonitor {
   ViewRegistration taught_;  // The kept background's view (SetTaughtView()).
   bool taught_pending_ = false;
   int taught_agree_ = 0, taught_differ_ = 0;  // Registrations in a row.
-  int taught_frames_ = 0;
   bool moved_since_taught_ = false;
   bool has_registration_reference_ = false;
-  int unmatched_frames_ = 0;
+  int shifted_frames_ = 0;
   double edges_in_place_ = -1.0;  // Edges kept while found in place; -1: not yet.
   int glance_next_ = 0;           // First patch of the next glance.
   bool moved_ = false;

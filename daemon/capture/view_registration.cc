@@ -6,6 +6,8 @@
 
 #include <Eigen/Dense>
 
+#include "common/image.h"
+
 namespace hg::capture {
 namespace {
 
@@ -19,14 +21,6 @@ constexpr int kCandidateStep = 4;
 // per pixel) a patch needs: texture in two directions, so that it can be found
 // again to a fraction of a pixel (an edge alone slides along itself).
 constexpr double kMinCornerness = 4.0;
-
-int GreyAt(const Frame& frame, int x, int y) {
-  if (frame.kind == FrameKind::kRgb) {
-    const std::uint8_t* p = frame.rgb.Pixel(x, y);
-    return (77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8;
-  }
-  return frame.grey.pixels[static_cast<std::size_t>(y) * frame.grey.width + x];
-}
 
 // Normalised cross-correlation of a zero-mean, unit-norm `ref` of side `side`
 // with the window of `region` (side `region_side`) whose top left is (x, y).
@@ -95,7 +89,7 @@ void ViewRegistration::Accumulate(const Frame& frame) {
   if (rgb) {
     const std::uint8_t* p = frame.rgb.pixels.data();
     for (std::size_t i = 0; i < sum_.size(); ++i, p += 3) {
-      out[i] = static_cast<std::uint16_t>(out[i] + ((77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8));
+      out[i] = static_cast<std::uint16_t>(out[i] + common::Luma(p));
     }
   } else {
     const std::uint8_t* p = frame.grey.pixels.data();
@@ -189,11 +183,12 @@ void ViewRegistration::ReadRegion(const Frame& frame, int x0, int y0) {
     if (frame.kind == FrameKind::kRgb) {
       const std::uint8_t* p = frame.rgb.Pixel(x0, y0 + v);
       for (int u = 0; u < kRegionPx; ++u, p += 3) {
-        row[u] = static_cast<float>((77 * p[0] + 150 * p[1] + 29 * p[2]) >> 8);
+        row[u] = static_cast<float>(common::Luma(p));
       }
     } else {
-      for (int u = 0; u < kRegionPx; ++u)
-        row[u] = static_cast<float>(GreyAt(frame, x0 + u, y0 + v));
+      const std::uint8_t* p =
+          frame.grey.pixels.data() + static_cast<std::size_t>(y0 + v) * frame.grey.width + x0;
+      for (int u = 0; u < kRegionPx; ++u) row[u] = static_cast<float>(p[u]);
     }
   }
   for (int v = 0; v < kHalfRegion; ++v) {

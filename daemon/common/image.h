@@ -39,6 +39,11 @@ struct ImageU8 {
   [[nodiscard]] ImageViewU8 View() const { return {pixels.data(), width, height, width}; }
 };
 
+/// Grey level (BT.601 luma, 8-bit fixed point) of an R G B pixel.
+[[nodiscard]] inline int Luma(const std::uint8_t* rgb) {
+  return (77 * rgb[0] + 150 * rgb[1] + 29 * rgb[2]) >> 8;
+}
+
 /// Owning 8-bit RGB image, tightly packed, R G B per pixel. Thread-compatible.
 struct ImageRgb8 {
   int width = 0;

@@ -57,6 +57,29 @@ std::uint64_t CalibrationId(const geometry::CameraModel& m) {
   return hash;
 }
 
+// The means of a learned background model as a frame of `kind` (kRgb or
+// kMono): the view it was taught in. Allocates.
+capture::Frame BackgroundFrame(const silhouette::BackgroundModel& model, capture::FrameKind kind) {
+  capture::Frame frame;
+  frame.kind = kind;
+  const int w = model.width(), h = model.height();
+  const bool rgb = kind == capture::FrameKind::kRgb;
+  if (rgb) {
+    frame.rgb = common::ImageRgb8(w, h);
+  } else {
+    frame.grey = common::ImageU8(w, h);
+  }
+  for (int v = 0; v < h; ++v) {
+    for (int u = 0; u < w; ++u) {
+      for (int k = 0; k < (rgb ? 3 : 1); ++k) {
+        const auto mean = static_cast<std::uint8_t>(std::lround(model.MeanAt(u, v, k)));
+        (rgb ? frame.rgb.Pixel(u, v)[k] : frame.grey.At(u, v)) = mean;
+      }
+    }
+  }
+  return frame;
+}
+
 }  // namespace
 
 Pipeline::CameraRuntime::CameraRuntime(geometry::CameraModel m,
@@ -387,29 +410,7 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
         log::Info("{}: background taken up from {}", c.model.name, file);
         // The kept background is the view as taught (after calibration): a
         // camera moved while the daemon was stopped no longer matches it.
-        capture::Frame taught;
-        taught.kind = frame.kind;
-        const int w = c.model.width, h = c.model.height;
-        if (frame.kind == capture::FrameKind::kRgb) {
-          taught.rgb = common::ImageRgb8(w, h);
-          for (int v = 0; v < h; ++v) {
-            for (int u = 0; u < w; ++u) {
-              for (int k = 0; k < 3; ++k) {
-                taught.rgb.Pixel(u, v)[k] =
-                    static_cast<std::uint8_t>(std::lround(c.background->MeanAt(u, v, k)));
-              }
-            }
-          }
-        } else {
-          taught.grey = common::ImageU8(w, h);
-          for (int v = 0; v < h; ++v) {
-            for (int u = 0; u < w; ++u) {
-              taught.grey.At(u, v) =
-                  static_cast<std::uint8_t>(std::lround(c.background->MeanAt(u, v, 0)));
-            }
-          }
-        }
-        c.health_monitor.SetTaughtView(taught);
+        c.health_monitor.SetTaughtView(BackgroundFrame(*c.background, frame.kind));
         c.taught_pending_told = c.health_monitor.awaiting_taught_view();
       } else if (options_.background_start == Start::kKeptOnly) {
         c.unlearned = true;

@@ -187,23 +187,25 @@ void BM_BackgroundLearningFullHd(benchmark::State& state) {
 }
 BENCHMARK(BM_BackgroundLearningFullHd)->Unit(benchmark::kMillisecond);
 
+// The images as RGB camera frames.
+std::vector<capture::Frame> RgbFrames(const std::vector<common::ImageRgb8>& images) {
+  std::vector<capture::Frame> frames(images.size());
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    frames[i].kind = capture::FrameKind::kRgb;
+    frames[i].rgb = images[i];
+  }
+  return frames;
+}
+
 // The health checks of one Full HD RGB frame after the reference view is
 // taken: the edge grid and the frozen check on every frame, registration of
 // the view on every third (CameraHealthOptions::shift_check_every).
 void BM_CameraHealthFullHd(benchmark::State& state) {
   const Workload& w = GetWorkload();
   capture::CameraHealthMonitor monitor;
-  capture::Frame frame;
-  frame.kind = capture::FrameKind::kRgb;
-  for (int i = 0; !monitor.has_reference(); ++i) {
-    frame.rgb = w.empty[static_cast<std::size_t>(i) % w.empty.size()];
-    monitor.Check(frame);
-  }
-  std::vector<capture::Frame> frames(w.frames.size());
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    frames[i].kind = capture::FrameKind::kRgb;
-    frames[i].rgb = w.frames[i];
-  }
+  const std::vector<capture::Frame> empty = RgbFrames(w.empty);
+  for (std::size_t i = 0; !monitor.has_reference(); ++i) monitor.Check(empty[i % empty.size()]);
+  const std::vector<capture::Frame> frames = RgbFrames(w.frames);
   std::size_t i = 0;
   for (auto _ : state) {
     benchmark::DoNotOptimize(monitor.Check(frames[i++ % frames.size()]));
@@ -218,18 +220,10 @@ BENCHMARK(BM_CameraHealthFullHd)->Unit(benchmark::kMillisecond);
 void BM_ViewRegistrationFullHd(benchmark::State& state) {
   const Workload& w = GetWorkload();
   capture::ViewRegistration registration;
-  capture::Frame frame;
-  frame.kind = capture::FrameKind::kRgb;
-  for (int i = 0; i < 10; ++i) {
-    frame.rgb = w.empty[static_cast<std::size_t>(i)];
-    registration.Accumulate(frame);
-  }
+  const std::vector<capture::Frame> empty = RgbFrames(w.empty);
+  for (std::size_t i = 0; i < 10; ++i) registration.Accumulate(empty[i]);
   registration.TakeReference();
-  std::vector<capture::Frame> frames(w.frames.size());
-  for (std::size_t i = 0; i < frames.size(); ++i) {
-    frames[i].kind = capture::FrameKind::kRgb;
-    frames[i].rgb = w.frames[i];
-  }
+  const std::vector<capture::Frame> frames = RgbFrames(w.frames);
   std::size_t i = 0;
   double misalignment = 0.0;
   for (auto _ : state) misalignment = registration.Measure(frames[i++ % frames.size()]);
