@@ -472,6 +472,15 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
      .meaning = "Pixels whose threshold would exceed this (flicker, a monitor in view) are always "
                 "foreground: nothing can be certified free there.",
      .limits = {1, 255}},
+    {.key = "texture_threshold",
+     .member = &BackgroundConfig::texture_threshold,
+     .meaning = "Grey frames (Mono8, raw Bayer mosaics): a pixel is also foreground where its "
+                "texture differs from the background's, that is where the difference of its two "
+                "neighbours along the row or the column differs from the background's by at least "
+                "this (grey levels; and by at least noise_sigmas times their learned noise). A "
+                "person whose grey matches the background behind them still hides its texture. "
+                "0: off (brightness alone). Colour frames are not tested so.",
+     .limits = {0, 255}},
     {.key = "guard_px",
      .member = &BackgroundConfig::guard_px,
      .meaning = "The model adapts only this far (pixels) or farther from any foreground pixel, so "
@@ -489,6 +498,12 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
                 "least 1 px) is the shift of a camera's view tolerated before its frames stop "
                 "being used (docs/cameras.md, a camera that moved).",
      .limits = {0, 50}},
+    {.key = "fill_holes",
+     .member = &BackgroundConfig::fill_holes,
+     .meaning = "After the dilation, background that the foreground encloses (no path of "
+                "background pixels leads from it to the image border) becomes foreground: the "
+                "inside of a person whose clothes match the background over more than the "
+                "dilation. Only adds foreground."},
     {.key = "keep_dir",
      .member = &BackgroundConfig::keep_dir,
      .meaning = "Folder (relative to the config file) where each camera's learned background is "
@@ -1815,6 +1830,13 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
     }
     r.Error(line, "background.max_threshold",
             "must be >= background.threshold = " + std::to_string(config.background.threshold));
+  }
+  if (r.error_count() == errors_before_background &&
+      config.background.texture_threshold > config.background.max_threshold) {
+    // Every pixel's texture threshold would exceed max_threshold: untested.
+    r.Error(key_line("background", "texture_threshold"), "background.texture_threshold",
+            "must be <= background.max_threshold = " +
+                std::to_string(config.background.max_threshold) + " (0 turns the test off)");
   }
   const std::size_t errors_before_dds = r.error_count();
   ReadSection<DdsConfig>(r, sections, "dds", kDdsFields, &config.dds);

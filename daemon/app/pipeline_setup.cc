@@ -47,6 +47,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   options.background.shadows_are_foreground = b.shadows_are_foreground;
   options.background.noise_sigmas = b.noise_sigmas;
   options.background.max_threshold = b.max_threshold;
+  options.background.texture_threshold = b.texture_threshold;
   options.background.guard_px = b.guard_px;
   options.background.compensate_gain = b.compensate_gain;
   options.background_dir = b.keep_dir;
@@ -54,6 +55,7 @@ pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
                                  ? pipeline::PipelineOptions::BackgroundStart::kLearn
                                  : pipeline::PipelineOptions::BackgroundStart::kKeptOnly;
   options.background_dilate_px = b.dilate_px;
+  options.background_fill_holes = b.fill_holes;
   return options;
 }
 

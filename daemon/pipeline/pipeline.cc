@@ -467,6 +467,10 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     // A (2 r + 1)^2 square, without allocating once the scratch has grown.
     silhouette::DilateSquare(&c.foreground, options_.background_dilate_px, &c.dilate_scratch,
                              c.background->foreground_tiles());
+    // A learning mask is all foreground: nothing to fill.
+    if (options_.background_fill_holes && !learning) {
+      silhouette::FillEnclosedBackground(&c.foreground, &c.hole_scratch);
+    }
     mask = &c.foreground;
     // Written whole by the next frame's Apply(): any buffer of its size will do.
     swappable = &c.foreground;

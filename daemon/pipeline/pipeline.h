@@ -24,6 +24,7 @@
 #include "pipeline/published_grid.h"
 #include "pipeline/snapshot.h"
 #include "silhouette/background_model.h"
+#include "silhouette/hole_fill.h"
 #include "silhouette/quadtree.h"
 #include "silhouette/tile_dilation.h"
 #include "silhouette/undistort.h"
@@ -77,6 +78,11 @@ struct PipelineOptions {
   /// person's pixel whose colour happens to match the background is covered
   /// by its neighbours (holes and ragged edges of the silhouette).
   int background_dilate_px = 2;
+  /// After the dilation, background pixels that the foreground encloses (no
+  /// path of background pixels leads from them to the image border) become
+  /// foreground (silhouette::FillEnclosedBackground): a person's inside
+  /// whose colour matches the background over more than the dilation.
+  bool background_fill_holes = true;
   /// Where each camera's learned background is kept across restarts
   /// (`background-<camera>.bin`; empty: nowhere, every start learns). A camera
   /// whose file is there and fits takes it up instead of learning: a person
@@ -250,6 +256,7 @@ class Pipeline {
     bool unmatched_told = false;  // The current spell of an unmatched view was told.
     common::ImageU8 foreground;
     silhouette::DilateScratch dilate_scratch;                 // DilateSquare of the foreground.
+    silhouette::HoleFillScratch hole_scratch;                 // FillEnclosedBackground of it.
     std::unique_ptr<silhouette::BackgroundModel> background;  // Image sources only.
     int heartbeat = -1;                                       // Id in heartbeats_, if any.
     // Fusion thread only.

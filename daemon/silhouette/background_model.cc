@@ -139,6 +139,54 @@ HG_VECTOR_CLONES int ThresholdMonoRow(const std::uint8_t* __restrict frame,
   return count;
 }
 
+/// Grey frames: diff[u] = frame[u] - gain * mean[u] (signed) for one row.
+HG_VECTOR_CLONES void SignedDiffRow(const std::uint8_t* __restrict frame,
+                                    const std::uint8_t* __restrict mean_high, int width,
+                                    std::uint16_t gain_q8, std::int16_t* __restrict diff) {
+  for (int u = 0; u < width; ++u) {
+    diff[u] = static_cast<std::int16_t>(frame[u] - ExpectedHigh(mean_high[u], gain_q8));
+  }
+}
+
+/// Grey frames with the texture test, rows with a row above and below:
+/// ThresholdMonoRow from the row's SignedDiffRow() `diff`, and besides the
+/// pixels u in 1 .. width - 2 whose texture differs from the background's:
+/// the difference of the neighbours along the row (frame[u + 1] - frame[u -
+/// 1]), or along the column (below minus above), differs from the same of
+/// the expected background by at least texture[u] (0: not tested), after the
+/// inverse gain. That is a difference of SignedDiffRow()s: (f[u + 1] - e[u +
+/// 1]) - (f[u - 1] - e[u - 1]). Returns the number of foreground pixels.
+/// Precondition: width >= 3.
+HG_VECTOR_CLONES int ThresholdMonoTextureRow(
+    const std::uint8_t* __restrict frame, const std::int16_t* __restrict above,
+    const std::int16_t* __restrict diff, const std::int16_t* __restrict below,
+    const std::uint8_t* __restrict threshold, const std::uint8_t* __restrict texture, int width,
+    std::uint16_t inverse_gain_q8, std::uint8_t* __restrict mask) {
+  auto scale = [inverse_gain_q8](std::int16_t d) {
+    const auto a = static_cast<std::uint16_t>(d < 0 ? -d : d);
+    // Thresholds are at most 255, so a difference beyond it needs no scaling.
+    const std::uint16_t clamped = a < 255 ? a : 255;
+    return MulHigh(static_cast<std::uint16_t>(clamped << 8), inverse_gain_q8);
+  };
+  int count = 0;
+  for (const int u : {0, width - 1}) {  // Brightness only: a neighbour is missing.
+    const bool foreground = (scale(diff[u]) >= threshold[u]) | (frame[u] >= kClipped);
+    mask[u] = foreground ? 255 : 0;
+    count += foreground ? 1 : 0;
+  }
+  for (int u = 1; u + 1 < width; ++u) {
+    // Each difference in [-255, 255], theirs in [-510, 510]: int16.
+    const std::uint16_t tx = scale(static_cast<std::int16_t>(diff[u + 1] - diff[u - 1]));
+    const std::uint16_t ty = scale(static_cast<std::int16_t>(below[u] - above[u]));
+    const std::uint16_t t = tx > ty ? tx : ty;
+    const bool foreground = (scale(diff[u]) >= threshold[u]) | (frame[u] >= kClipped) |
+                            ((texture[u] != 0) & (t >= texture[u]));
+    mask[u] = foreground ? 255 : 0;
+    count += foreground ? 1 : 0;
+  }
+  return count;
+}
+
 /// One learning frame over n samples: each mean (8.8, split into high and low
 /// bytes) moves to the running average with the frame brought back to the
 /// reference gain, x = frame * inverse_gain >> 8; `inverse_count` is
@@ -228,6 +276,9 @@ void ValidateBackgroundModelOptions(const BackgroundModelOptions& o) {
   if (o.guard_px < 0 || o.guard_px > 1024) {
     throw ConfigError(Bad("guard_px", "must be in [0, 1024] pixels"));
   }
+  if (o.texture_threshold < 0 || o.texture_threshold > 255) {
+    throw ConfigError(Bad("texture_threshold", "must be in [0, 255] grey levels (0: off)"));
+  }
   if (!(o.shadow_min_ratio > 0.0 && o.shadow_min_ratio < 1.0)) {
     throw ConfigError(Bad("shadow_min_ratio", "must be in (0, 1)"));
   }
@@ -248,6 +299,10 @@ BackgroundModel::BackgroundModel(int width, int height, const BackgroundModelOpt
   deviation_.assign(3 * pixels, 0);
   peak_.assign(3 * pixels, 0);
   threshold_.assign(pixels, 0);
+  if (options_.texture_threshold > 0) {
+    texture_threshold_.assign(pixels, 0);
+    diff_rows_.assign(3 * static_cast<std::size_t>(width), 0);
+  }
   tiles_x_ = (width + kTile - 1) / kTile;
   tiles_y_ = (height + kTile - 1) / kTile;
   const auto tiles = static_cast<std::size_t>(tiles_x_) * tiles_y_;
@@ -282,6 +337,7 @@ void BackgroundModel::Reset() {
   std::fill(deviation_.begin(), deviation_.end(), 0);
   std::fill(peak_.begin(), peak_.end(), 0);
   std::fill(threshold_.begin(), threshold_.end(), 0);
+  std::fill(texture_threshold_.begin(), texture_threshold_.end(), 0);
   std::fill(tile_free_.begin(), tile_free_.end(), 1);
 }
 
@@ -475,6 +531,12 @@ int BackgroundModel::ThresholdAt(int u, int v) const {
   return t == 0 ? -1 : t;
 }
 
+int BackgroundModel::TextureThresholdAt(int u, int v) const {
+  HG_CHECK(u >= 0 && u < width_ && v >= 0 && v < height_);
+  if (texture_threshold_.empty() || channels_ != 1) return 0;
+  return texture_threshold_[static_cast<std::size_t>(v) * width_ + u];
+}
+
 void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common::ImageU8* mask) {
   HG_CHECK(mask != nullptr);
   const auto pixels = static_cast<std::size_t>(width_) * height_;
@@ -625,8 +687,31 @@ void BackgroundModel::FinishLearning() {
     threshold_[p] =
         passed || rounded > options_.max_threshold ? 0 : static_cast<std::uint8_t>(rounded);
   }
+  if (!texture_threshold_.empty()) FinishTextureThresholds(sigma_per_unit);
   std::fill(tile_free_.begin(), tile_free_.end(), 1);
   GatherSample(&sample_reference_);
+}
+
+void BackgroundModel::FinishTextureThresholds(double sigma_per_unit) {
+  std::fill(texture_threshold_.begin(), texture_threshold_.end(), 0);
+  if (channels_ != 1 || width_ < 3 || height_ < 3) return;
+  // The texture compares differences of two pixels: their noise adds up. A
+  // neighbour that is unreliable (its deviation saturated) makes the pixel's
+  // texture untested; its brightness still is.
+  const double scale = options_.noise_sigmas * std::sqrt(2.0) * sigma_per_unit;
+  for (int v = 1; v + 1 < height_; ++v) {
+    for (int u = 1; u + 1 < width_; ++u) {
+      const std::size_t p = static_cast<std::size_t>(v) * width_ + u;
+      const std::size_t w = static_cast<std::size_t>(width_);
+      const std::uint16_t noisiest =
+          std::max({deviation_[p - 1], deviation_[p + 1], deviation_[p - w], deviation_[p + w]});
+      if (threshold_[p] == 0 || noisiest == 0xFFFF) continue;
+      const double t = std::max<double>(options_.texture_threshold, scale * noisiest);
+      const auto rounded = static_cast<int>(std::ceil(t - 1e-9));
+      texture_threshold_[p] =
+          rounded > options_.max_threshold ? 0 : static_cast<std::uint8_t>(rounded);
+    }
+  }
 }
 
 void BackgroundModel::Process(const std::uint8_t* frame, std::uint8_t* mask) {
@@ -642,6 +727,7 @@ void BackgroundModel::Process(const std::uint8_t* frame, std::uint8_t* mask) {
     rate_q17_ = static_cast<int>(std::clamp<long>(std::lround(rate / gain_ * 131072.0), 0, 32767));
   }
   guard_tiles_ = (options_.guard_px + kTile - 1) / kTile;
+  diff_row_of_.fill(-1);  // A new frame (and gain).
   const int r = guard_tiles_;
   std::int64_t count = 0;
   for (int ty = 0; ty < tiles_y_; ++ty) {
@@ -663,6 +749,18 @@ void BackgroundModel::Process(const std::uint8_t* frame, std::uint8_t* mask) {
   foreground_fraction_ = static_cast<double>(count) / (static_cast<double>(width_) * height_);
 }
 
+const std::int16_t* BackgroundModel::DiffRow(int v, const std::uint8_t* frame) {
+  const int slot = v % 3;
+  std::int16_t* row = diff_rows_.data() + static_cast<std::size_t>(slot) * width_;
+  if (diff_row_of_[slot] != v) {
+    const std::size_t start = static_cast<std::size_t>(v) * width_;
+    SignedDiffRow(frame + start, mean_high_.data() + start, width_,
+                  static_cast<std::uint16_t>(gain_q8_), row);
+    diff_row_of_[slot] = v;
+  }
+  return row;
+}
+
 int BackgroundModel::ClassifyRow(int v, const std::uint8_t* frame, std::uint8_t* mask) {
   const int c = channels_;
   const auto gain_q8 = static_cast<std::uint16_t>(gain_q8_);
@@ -677,7 +775,13 @@ int BackgroundModel::ClassifyRow(int v, const std::uint8_t* frame, std::uint8_t*
     AbsDiffRow(f, m, 3 * width_, gain_q8, inverse_gain_q8, row_diff_.data());
     count = ThresholdRgbRow(row_diff_.data(), t, width_, out);
   } else {
-    count = ThresholdMonoRow(f, m, t, width_, gain_q8, inverse_gain_q8, out);
+    if (!texture_threshold_.empty() && v > 0 && v + 1 < height_ && width_ >= 3) {
+      count = ThresholdMonoTextureRow(f, DiffRow(v - 1, frame), DiffRow(v, frame),
+                                      DiffRow(v + 1, frame), t, texture_threshold_.data() + row,
+                                      width_, inverse_gain_q8, out);
+    } else {
+      count = ThresholdMonoRow(f, m, t, width_, gain_q8, inverse_gain_q8, out);
+    }
   }
   if (count == 0) return 0;
   // Tiles with any differing pixel, shadows included: the guard keeps the

@@ -7,6 +7,7 @@
 /// who stands still (what it cannot tell from the empty cell: docs/cameras.md,
 /// "The background model: what it cannot see").
 
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -24,6 +25,16 @@ struct BackgroundModelOptions {
   /// being the pixel's noise learned at start-up (largest over its channels).
   int min_threshold = 18;
   double noise_sigmas = 4.0;
+  /// Grey frames (Mono8, and raw Bayer mosaics, whose neighbours one pixel
+  /// apart along a row or a column are sites of one colour): a pixel is also
+  /// foreground when its texture differs from the background's, that is when
+  /// the difference of its two neighbours along the row, or along the
+  /// column, differs from the background's by at least max(texture_threshold,
+  /// noise_sigmas * sqrt(2) * sigma), sigma being the largest noise of those
+  /// neighbours. Brightness alone misses a person whose grey matches the
+  /// background behind them; where the background is textured, the person
+  /// hides its texture. 0: off. Colour frames are not tested so.
+  int texture_threshold = 12;
   /// Pixels whose threshold would exceed this (flicker, a monitor in view) are
   /// unreliable: always foreground, since nothing can be certified there.
   int max_threshold = 64;
@@ -128,6 +139,11 @@ class BackgroundModel {
   /// The foreground threshold of pixel (u, v) in grey levels; -1 for an
   /// unreliable pixel (always foreground). Meaningful once learning ended.
   [[nodiscard]] int ThresholdAt(int u, int v) const;
+  /// The texture threshold of pixel (u, v) (BackgroundModelOptions::
+  /// texture_threshold); 0 where the texture is not tested (off, colour
+  /// frames, the image's outer pixels, unreliable pixels, a threshold beyond
+  /// max_threshold). Meaningful once learning ended.
+  [[nodiscard]] int TextureThresholdAt(int u, int v) const;
 
   /// The 8x8-pixel tiles (ceil(width / 8) per row, row-major) that hold
   /// foreground in the last mask Apply() wrote: every foreground pixel lies in
@@ -145,12 +161,17 @@ class BackgroundModel {
   void ApplyFrame(const std::uint8_t* frame, int channels, common::ImageU8* mask);
   void Learn(const std::uint8_t* frame);
   void FinishLearning();
+  /// texture_threshold_ from the thresholds and the learned noise.
+  void FinishTextureThresholds(double sigma_per_unit);
   /// Classifies the frame row by row; each 8-row band of tiles adapts as soon
   /// as the bands within its guard are classified, while its rows are still
   /// in cache.
   void Process(const std::uint8_t* frame, std::uint8_t* mask);
   /// Mask row v, this row's tile flags; returns its foreground count.
   int ClassifyRow(int v, const std::uint8_t* frame, std::uint8_t* mask);
+  /// Grey frames with the texture test: row v of frame - gain * mean (signed),
+  /// computed once per frame (rows are classified in order; three are kept).
+  const std::int16_t* DiffRow(int v, const std::uint8_t* frame);
   /// The free tiles of tile row ty (foreground of tile rows ty +- guard known)
   /// and the adaptation of its rows.
   void FinishTileRow(int ty, const std::uint8_t* frame);
@@ -200,6 +221,9 @@ class BackgroundModel {
   std::vector<std::uint8_t> peak_;
   // Per pixel.
   std::vector<std::uint8_t> threshold_;  ///< Foreground iff max |d| >= this; 0 = always.
+  /// Grey frames with texture_threshold: foreground also iff the texture
+  /// differs by this much (0: not tested). Empty when off.
+  std::vector<std::uint8_t> texture_threshold_;
   // Per 8x8 tile.
   int tiles_x_ = 0;
   int tiles_y_ = 0;
@@ -207,7 +231,9 @@ class BackgroundModel {
   std::vector<std::uint8_t> tile_scratch_;     ///< Foreground within the guard along the row.
   std::vector<std::uint8_t> tile_free_;        ///< No foreground within the guard: may adapt.
   // Scratch.
-  std::vector<std::uint8_t> row_diff_;  ///< |frame - expected| of one row, per channel.
+  std::vector<std::uint8_t> row_diff_;          ///< |frame - expected| of one row, per channel.
+  std::vector<std::int16_t> diff_rows_;         ///< DiffRow(): three rows, row v in slot v % 3.
+  std::array<int, 3> diff_row_of_{-1, -1, -1};  ///< The row each slot holds (-1: none).
   // The gain sample: a sparse, staggered grid of pixels. The gain is measured
   // against the background learned at start-up there, not against the adapted
   // background: measured against itself, gain and background could drift

@@ -44,7 +44,10 @@ sim::Scene SmallScene() {
   return scene;
 }
 
-void RunAndCount(bool colour) {
+enum class Frames { kMask, kColour, kGrey };
+
+void RunAndCount(Frames kind) {
+  const bool colour = kind != Frames::kMask;  // Through the background model.
   const sim::Scene scene = SmallScene();
   PipelineOptions options;
   options.bounds = scene.bounds;
@@ -83,6 +86,14 @@ void RunAndCount(bool colour) {
       if (colour) {
         f.kind = capture::FrameKind::kRgb;
         colours[c].Render(people, t, f.index, &f.rgb);
+        if (kind == Frames::kGrey) {  // Mono8: the texture test on the path too.
+          f.kind = capture::FrameKind::kMono;
+          f.grey = common::ImageU8(f.rgb.width, f.rgb.height);
+          for (std::size_t p = 0; p < f.grey.pixels.size(); ++p) {
+            const std::uint8_t* rgb = f.rgb.pixels.data() + 3 * p;
+            f.grey.pixels[p] = static_cast<std::uint8_t>((rgb[0] + rgb[1] + rgb[2]) / 3);
+          }
+        }
       } else {
         f.kind = capture::FrameKind::kMask;
         masks[c].Render(people, &f.grey);
@@ -118,14 +129,17 @@ void RunAndCount(bool colour) {
     listed += OccupancySnapshot::Cells(held[next_held]->occupied);
     next_held = (next_held + 1) % held.size();
   }
-  EXPECT_EQ(feed, 0) << (colour ? "colour" : "mask") << " frames, silhouette steps";
-  EXPECT_EQ(step, 0) << (colour ? "colour" : "mask") << " frames, fusion cycles";
+  const char* name = kind == Frames::kMask ? "mask" : kind == Frames::kColour ? "colour" : "Mono8";
+  EXPECT_EQ(feed, 0) << name << " frames, silhouette steps";
+  EXPECT_EQ(step, 0) << name << " frames, fusion cycles";
   EXPECT_GT(listed, 0U) << "the walker was not seen: the cycles did nothing";
 }
 
-TEST(PipelineAllocationTest, NoAllocationPerCycleOnMaskFrames) { RunAndCount(false); }
+TEST(PipelineAllocationTest, NoAllocationPerCycleOnMaskFrames) { RunAndCount(Frames::kMask); }
 
-TEST(PipelineAllocationTest, NoAllocationPerCycleOnColourFrames) { RunAndCount(true); }
+TEST(PipelineAllocationTest, NoAllocationPerCycleOnColourFrames) { RunAndCount(Frames::kColour); }
+
+TEST(PipelineAllocationTest, NoAllocationPerCycleOnMono8Frames) { RunAndCount(Frames::kGrey); }
 
 }  // namespace
 }  // namespace hg::pipeline
