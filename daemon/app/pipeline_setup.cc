@@ -149,7 +149,7 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
                              sim_source->bayer);
         source->HoldPeopleUntilLearned(people_gate);
       }
-      cameras.push_back({c.model, std::move(source), c.timeout_ms});
+      cameras.push_back({c.model, std::move(source), c.timeout_ms, sim_source->bayer});
       continue;
     }
 #ifdef HG_WITH_ARAVIS
@@ -172,8 +172,10 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
       o.width = c.model.width;
       o.height = c.model.height;
       o.frame_timeout = std::chrono::milliseconds(c.timeout_ms);
-      cameras.push_back(
-          {c.model, std::make_unique<capture::AravisSource>(std::move(o)), c.timeout_ms});
+      const bool raw_bayer = gige->pixel_format != PixelFormat::kMono8 &&
+                             gige->pixel_format != PixelFormat::kRGB8 && !gige->debayer;
+      cameras.push_back({c.model, std::make_unique<capture::AravisSource>(std::move(o)),
+                         c.timeout_ms, raw_bayer});
       continue;
     }
 #endif

@@ -101,6 +101,7 @@ Pipeline::Pipeline(const PipelineOptions& options, std::vector<PipelineCamera> c
   std::vector<octree::CameraView> views;
   for (PipelineCamera& c : cameras) {
     auto runtime = std::make_unique<CameraRuntime>(c.model, std::move(c.source), c.timeout_ms);
+    runtime->bayer_mosaic = c.bayer_mosaic;
     // A shift of the view that is not found as a move stays within half of
     // what the foreground dilation covers; the other half is for colours.
     capture::CameraHealthOptions health;
@@ -394,8 +395,10 @@ void Pipeline::ProcessFrame(int camera, const capture::Frame& frame, common::Ima
     using Start = PipelineOptions::BackgroundStart;
     if (!c.background) {
       // Warm-up, the camera's first frame: the model, and its saved background.
+      silhouette::BackgroundModelOptions model_options = options_.background;
+      if (c.bayer_mosaic) model_options.texture_threshold = 0;
       c.background = std::make_unique<silhouette::BackgroundModel>(c.model.width, c.model.height,
-                                                                   options_.background);
+                                                                   model_options);
       c.has_model.store(true, std::memory_order_release);
       const std::string file = BackgroundFile(camera);
       std::string error;

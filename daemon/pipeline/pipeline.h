@@ -114,6 +114,11 @@ struct PipelineCamera {
   /// May be null in lock-step use (Feed() and Step(), no Start()).
   std::unique_ptr<capture::CameraSource> source;
   int timeout_ms = 200;  ///< Silent longer than this: the camera sees nothing.
+  /// Its one-byte frames are raw Bayer mosaics, not grey: the background
+  /// model compares each photosite in its own colour, and the texture test
+  /// (BackgroundModelOptions::texture_threshold) is left off, the colours
+  /// telling what it would (and it would cost 0.2-0.4 ms a Full HD frame).
+  bool bayer_mosaic = false;
 };
 
 /// Capture thread per camera: source -> a latest-value handoff of raw frames
@@ -230,6 +235,7 @@ class Pipeline {
     std::unique_ptr<capture::CameraSource> source;
     std::unique_ptr<silhouette::ConservativeUndistorter> undistorter;
     int timeout_ms = 200;
+    bool bayer_mosaic = false;                // PipelineCamera::bayer_mosaic.
     common::LatestValue<capture::Frame> raw;  // Capture thread -> silhouette worker.
     std::atomic<bool> busy{false};  // A silhouette worker is on this camera (shared workers).
     std::atomic<std::uint32_t>* signal = nullptr;  // Bumped by the capture thread every loop.

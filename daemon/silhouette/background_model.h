@@ -33,7 +33,8 @@ struct BackgroundModelOptions {
   /// noise_sigmas * sqrt(2) * sigma), sigma being the largest noise of those
   /// neighbours. Brightness alone misses a person whose grey matches the
   /// background behind them; where the background is textured, the person
-  /// hides its texture. 0: off. Colour frames are not tested so.
+  /// hides its texture. 0: off. Colour frames are not tested so (the
+  /// pipeline leaves it off for raw Bayer mosaics too, PipelineCamera).
   int texture_threshold = 12;
   /// Pixels whose threshold would exceed this (flicker, a monitor in view) are
   /// unreliable: always foreground, since nothing can be certified there.
