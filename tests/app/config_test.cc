@@ -875,6 +875,25 @@ TEST(ConfigSceneTest, ASceneBrokenAfterLoadingFailsWithAConfigError) {
   EXPECT_THROW((void)MakeCameras(config, capture::SimClock::Now()), common::ConfigError);
 }
 
+// A sim camera that delivers raw Bayer mosaics is made as one (its frames are
+// not grey: the pipeline leaves the texture test off for it); one of masks or
+// RGB is not.
+TEST(ConfigSceneTest, ASimCameraOfBayerMosaicsIsMadeAsOne) {
+  const TempDir dir;
+  dir.Write("scene.yaml", kSmallScene);
+  for (const auto& [source, mosaic] :
+       std::vector<std::pair<std::string, bool>>{{"scene: scene.yaml, bayer: true", true},
+                                                 {"scene: scene.yaml, colour: true", false},
+                                                 {"scene: scene.yaml", false}}) {
+    const Config config =
+        ParseConfig(Replace(kSimConfig, "scene: scene.yaml", source), "c.yaml", dir.str());
+    const std::vector<pipeline::PipelineCamera> cameras =
+        MakeCameras(config, capture::SimClock::Now());
+    ASSERT_EQ(cameras.size(), 1U);
+    EXPECT_EQ(cameras[0].bayer_mosaic, mosaic) << source;
+  }
+}
+
 // The camera block of a sim camera must be the scene's camera of that name:
 // the size exactly, K, distortion, R and t to 1e-9 relative, in any form.
 TEST(ConfigSceneTest, TheCameraBlockMustBeTheScenesCamera) {
