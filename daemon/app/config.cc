@@ -450,7 +450,10 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
      .limits = {1, 10'000}},
     {.key = "threshold",
      .member = &BackgroundConfig::threshold,
-     .meaning = "A pixel differing from the model by more than this (grey levels) is foreground.",
+     .meaning = "A pixel differing from the model by at least this (grey levels, in some "
+                "channel; and by at least noise_sigmas times its learned noise) is foreground. "
+                "Each level more lets more of a person whose colour is near the background's "
+                "through (docs/cameras.md: what the background model cannot see).",
      .limits = {1, 255}},
     {.key = "adapt_rate",
      .member = &BackgroundConfig::adapt_rate,

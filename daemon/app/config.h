@@ -143,7 +143,7 @@ struct CameraConfig {
 /// Background model of the silhouette stage.
 struct BackgroundConfig {
   int learn_frames = 30;               ///< Frames averaged before the first mask.
-  int threshold = 25;                  ///< Foreground above this difference (grey levels).
+  int threshold = 15;                  ///< Foreground above this difference (grey levels).
   double adapt_rate = 0.01;            ///< Per-frame blend of background pixels into the model.
   bool shadows_are_foreground = true;  ///< Conservative: a shadow may hide a person's edge.
   double noise_sigmas = 4.0;    ///< Per-pixel threshold: at least this many learned noise sigmas.

@@ -148,7 +148,7 @@ TEST(ConfigTest, DefaultsOfAMinimalFile) {
   EXPECT_EQ(c.threads.octree, 2);
   EXPECT_EQ(c.threads.silhouette_workers, 0);
   EXPECT_EQ(c.background.learn_frames, 30);
-  EXPECT_EQ(c.background.threshold, 25);
+  EXPECT_EQ(c.background.threshold, 15);
   EXPECT_EQ(c.background.adapt_rate, 0.01);
   EXPECT_TRUE(c.background.shadows_are_foreground);
   EXPECT_TRUE(c.obstacles.empty());

@@ -685,7 +685,7 @@ int FreeOf200PerPerson(const sim::Scene& scene, const OccupancySnapshot& s) {
 
 // Grey (Mono8) cameras, the default pixel format of GigE cameras, see
 // brightness only, and a person's clothes match the background's grey in
-// places. At the daemon's default threshold (25 grey levels), with
+// places. At a threshold of 25 grey levels (hullguardd's default is 15), with
 // brightness alone and the 2-pixel dilation, 1 102 of the 35 200 points
 // sampled inside the two people over these 88 frames were published free,
 // in every frame. With the texture test alone none are, with the enclosed
@@ -698,7 +698,7 @@ TEST(PipelineTest, GreyCamerasFreeNoPointInsideThePeople) {
   options.depth = 8;
   options.publish_depth = 8;
   options.background.learn_frames = 20;
-  options.background.min_threshold = 25;  // hullguardd's background.threshold.
+  options.background.min_threshold = 25;  // A camera set up to see less.
   Pipeline pipeline(options, FedCameras(*scene), {}, nullptr);
   int i = 0;
   for (; i < 30; ++i) frames.Cycle(pipeline, i, /*present=*/false, /*grey=*/true);
