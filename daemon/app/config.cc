@@ -1823,16 +1823,7 @@ Config ParseConfig(const std::string& text, const std::string& file, const std::
   }
   if (r.error_count() == errors_before_background &&
       config.background.max_threshold < config.background.threshold) {
-    int line = 0;
-    if (const auto it = sections.find("background");
-        it != sections.end() && it->second.value.IsMap()) {
-      for (const auto& kv : it->second.value) {
-        if (kv.first.IsScalar() && kv.first.Scalar() == "max_threshold") {
-          line = common::YamlLine(kv.first);
-        }
-      }
-    }
-    r.Error(line, "background.max_threshold",
+    r.Error(key_line("background", "max_threshold"), "background.max_threshold",
             "must be >= background.threshold = " + std::to_string(config.background.threshold));
   }
   if (r.error_count() == errors_before_background &&

@@ -15,6 +15,17 @@
 #include "sim/scene.h"
 
 namespace hg::app {
+namespace {
+
+/// Whether a GigE camera's frames reach the pipeline as raw Bayer mosaics:
+/// one byte per photosite, each in its own colour (Mono8 is one byte a pixel
+/// too, grey; RGB8 and debayered frames are RGB).
+bool RawBayer(const AravisSourceConfig& a) {
+  return a.pixel_format != PixelFormat::kMono8 && a.pixel_format != PixelFormat::kRGB8 &&
+         !a.debayer;
+}
+
+}  // namespace
 
 pipeline::PipelineOptions MakePipelineOptions(const Config& config) {
   pipeline::PipelineOptions options;
@@ -172,10 +183,8 @@ std::vector<pipeline::PipelineCamera> MakeCameras(const Config& config,
       o.width = c.model.width;
       o.height = c.model.height;
       o.frame_timeout = std::chrono::milliseconds(c.timeout_ms);
-      const bool raw_bayer = gige->pixel_format != PixelFormat::kMono8 &&
-                             gige->pixel_format != PixelFormat::kRGB8 && !gige->debayer;
       cameras.push_back({c.model, std::make_unique<capture::AravisSource>(std::move(o)),
-                         c.timeout_ms, raw_bayer});
+                         c.timeout_ms, RawBayer(*gige)});
       continue;
     }
 #endif
@@ -216,8 +225,7 @@ std::vector<pipeline::BlackBoxCamera> BlackBoxCameras(const Config& config) {
       if (rec.rate_hz > 0.0) b.rate_hz = rec.rate_hz;
     } else if (const auto* a = std::get_if<AravisSourceConfig>(&c.source)) {
       // Mono8, and Bayer mosaics passed on raw, are one byte per pixel.
-      const bool rgb = a->pixel_format == PixelFormat::kRGB8 ||
-                       (a->pixel_format != PixelFormat::kMono8 && a->debayer);
+      const bool rgb = a->pixel_format != PixelFormat::kMono8 && !RawBayer(*a);
       b.kind = rgb ? FrameKind::kRgb : FrameKind::kMono;
       if (a->frame_rate_hz) b.rate_hz = *a->frame_rate_hz;
     } else if (const auto* v = std::get_if<V4l2SourceConfig>(&c.source)) {

@@ -13,6 +13,7 @@
 
 #include "capture/camera_health.h"
 #include "capture/view_registration.h"
+#include "common/image.h"
 #include "scene/demo_cell.h"
 #include "silhouette/background_model.h"
 #include "silhouette/hole_fill.h"
@@ -83,9 +84,24 @@ const Workload& GetWorkload() {
 common::ImageU8 Grey(const common::ImageRgb8& rgb) {
   common::ImageU8 grey(rgb.width, rgb.height);
   for (std::size_t i = 0; i < grey.pixels.size(); ++i) {
-    const std::uint8_t* p = rgb.pixels.data() + 3 * i;
-    grey.pixels[i] = static_cast<std::uint8_t>((77 * p[0] + 150 * p[1] + 29 * p[2] + 128) >> 8);
+    grey.pixels[i] = static_cast<std::uint8_t>(common::Luma(rgb.pixels.data() + 3 * i));
   }
+  return grey;
+}
+
+/// The workload as Mono8 frames, converted once per run.
+struct GreyWorkload {
+  std::vector<common::ImageU8> empty;
+  std::vector<common::ImageU8> frames;
+};
+const GreyWorkload& GetGreyWorkload() {
+  static const GreyWorkload grey = [] {
+    const Workload& w = GetWorkload();
+    GreyWorkload g;
+    for (const auto& f : w.empty) g.empty.push_back(Grey(f));
+    for (const auto& f : w.frames) g.frames.push_back(Grey(f));
+    return g;
+  }();
   return grey;
 }
 
@@ -127,25 +143,17 @@ void BM_BackgroundModelFullHdShadowsAsBackground(benchmark::State& state) {
 BENCHMARK(BM_BackgroundModelFullHdShadowsAsBackground)->Unit(benchmark::kMillisecond);
 
 void BM_BackgroundModelFullHdMono8(benchmark::State& state) {
-  const Workload& w = GetWorkload();
-  std::vector<common::ImageU8> empty;
-  std::vector<common::ImageU8> frames;
-  for (const auto& f : w.empty) empty.push_back(Grey(f));
-  for (const auto& f : w.frames) frames.push_back(Grey(f));
-  RunModel(state, empty, frames, silhouette::BackgroundModelOptions{});
+  const GreyWorkload& g = GetGreyWorkload();
+  RunModel(state, g.empty, g.frames, silhouette::BackgroundModelOptions{});
 }
 BENCHMARK(BM_BackgroundModelFullHdMono8)->Unit(benchmark::kMillisecond);
 
 // The same without the texture test (brightness alone): what the test costs.
 void BM_BackgroundModelFullHdMono8BrightnessOnly(benchmark::State& state) {
-  const Workload& w = GetWorkload();
-  std::vector<common::ImageU8> empty;
-  std::vector<common::ImageU8> frames;
-  for (const auto& f : w.empty) empty.push_back(Grey(f));
-  for (const auto& f : w.frames) frames.push_back(Grey(f));
+  const GreyWorkload& g = GetGreyWorkload();
   silhouette::BackgroundModelOptions options;
   options.texture_threshold = 0;
-  RunModel(state, empty, frames, options);
+  RunModel(state, g.empty, g.frames, options);
 }
 BENCHMARK(BM_BackgroundModelFullHdMono8BrightnessOnly)->Unit(benchmark::kMillisecond);
 
@@ -154,12 +162,12 @@ BENCHMARK(BM_BackgroundModelFullHdMono8BrightnessOnly)->Unit(benchmark::kMillise
 // fills the same mask again: the same scan and runs, without the holes'
 // writes after the first.
 void BM_FillEnclosedBackgroundFullHd(benchmark::State& state) {
-  const Workload& w = GetWorkload();
-  silhouette::BackgroundModel model(w.frames[0].width, w.frames[0].height,
+  const GreyWorkload& g = GetGreyWorkload();
+  silhouette::BackgroundModel model(g.frames[0].width, g.frames[0].height,
                                     silhouette::BackgroundModelOptions{});
   common::ImageU8 mask;
-  for (const auto& f : w.empty) model.Apply(Grey(f), &mask);
-  model.Apply(Grey(w.frames[0]), &mask);
+  for (const auto& f : g.empty) model.Apply(f, &mask);
+  model.Apply(g.frames[0], &mask);
   silhouette::DilateScratch dilate;
   silhouette::DilateSquare(&mask, 2, &dilate);
   silhouette::HoleFillScratch scratch;

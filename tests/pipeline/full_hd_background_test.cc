@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "common/image.h"
 #include "pipeline/pipeline.h"
 #include "sim/colour_renderer.h"
 #include "sim/scene.h"
@@ -77,8 +78,7 @@ std::vector<int> FreePoints(const std::vector<Setting>& settings) {
       grey.grey = common::ImageU8(rgb.rgb.width, rgb.rgb.height);
       for (std::size_t p = 0; p < grey.grey.pixels.size(); ++p) {
         const std::uint8_t* q = rgb.rgb.pixels.data() + 3 * p;
-        grey.grey.pixels[p] =
-            static_cast<std::uint8_t>((77 * q[0] + 150 * q[1] + 29 * q[2] + 128) >> 8);
+        grey.grey.pixels[p] = static_cast<std::uint8_t>(common::Luma(q));
       }
       for (std::size_t k = 0; k < settings.size(); ++k) {
         pipelines[k]->Feed(c, settings[k].grey ? grey : rgb);

@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/image.h"
 #include "pipeline/pipeline.h"
 #include "scene/demo_cell.h"
 #include "sim/body.h"
@@ -90,8 +91,7 @@ void RunAndCount(Frames kind) {
           f.kind = capture::FrameKind::kMono;
           f.grey = common::ImageU8(f.rgb.width, f.rgb.height);
           for (std::size_t p = 0; p < f.grey.pixels.size(); ++p) {
-            const std::uint8_t* rgb = f.rgb.pixels.data() + 3 * p;
-            f.grey.pixels[p] = static_cast<std::uint8_t>((rgb[0] + rgb[1] + rgb[2]) / 3);
+            f.grey.pixels[p] = static_cast<std::uint8_t>(common::Luma(f.rgb.pixels.data() + 3 * p));
           }
         }
       } else {
