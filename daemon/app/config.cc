@@ -477,13 +477,13 @@ const Field<BackgroundConfig> kBackgroundFields[] = {
      .limits = {1, 255}},
     {.key = "texture_threshold",
      .member = &BackgroundConfig::texture_threshold,
-     .meaning = "Grey frames (Mono8 and GREY cameras, replays of grey recordings): a pixel is "
-                "also foreground where its texture differs from the background's, that is where "
-                "the difference of its two neighbours along the row or the column differs from "
-                "the background's by at least this (grey levels; and by at least noise_sigmas "
-                "times their learned noise). A person whose grey matches the background behind "
-                "them still hides its texture. 0: off (brightness alone). Colour frames and raw "
-                "Bayer mosaics (their photosites' colours tell) are not tested so.",
+     .meaning = "A pixel is also foreground where its texture differs from the background's, "
+                "that is where the difference of its two neighbours along the row or the column "
+                "(in some channel, for colour frames) differs from the background's by at least "
+                "this (grey levels, scaled like brightness differences in dim light), and by at "
+                "least noise_sigmas times their learned noise. A person whose colour or grey "
+                "matches the background behind them still hides its texture. 0: off (brightness "
+                "alone). Raw Bayer mosaics (their photosites' colours tell) are not tested so.",
      .limits = {0, 255}},
     {.key = "guard_px",
      .member = &BackgroundConfig::guard_px,

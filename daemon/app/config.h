@@ -148,7 +148,7 @@ struct BackgroundConfig {
   bool shadows_are_foreground = true;  ///< Conservative: a shadow may hide a person's edge.
   double noise_sigmas = 4.0;    ///< Per-pixel threshold: at least this many learned noise sigmas.
   int max_threshold = 64;       ///< Pixels noisier than this are always foreground.
-  int texture_threshold = 12;   ///< Grey frames: foreground where the texture differs this much.
+  int texture_threshold = 14;   ///< Foreground also where the texture differs this much.
   bool fill_holes = true;       ///< Background the foreground encloses becomes foreground.
   int guard_px = 8;             ///< No adaptation this close to foreground.
   bool compensate_gain = true;  ///< Follow global light changes with one gain per frame.

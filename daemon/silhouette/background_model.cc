@@ -148,25 +148,33 @@ HG_VECTOR_CLONES void SignedDiffRow(const std::uint8_t* __restrict frame,
   }
 }
 
+/// |d| saturated to 255 (thresholds are at most 255).
+inline std::uint8_t Magnitude(std::int16_t d) {
+  const auto a = static_cast<std::uint16_t>(d < 0 ? -d : d);
+  return static_cast<std::uint8_t>(a < 255 ? a : 255);
+}
+
 /// Grey frames with the texture test, rows with a row above and below:
 /// ThresholdMonoRow from the row's SignedDiffRow() `diff`, and besides the
 /// pixels u in 1 .. width - 2 whose texture differs from the background's:
 /// the difference of the neighbours along the row (frame[u + 1] - frame[u -
 /// 1]), or along the column (below minus above), differs from the same of
-/// the expected background by at least texture[u] (0: not tested), after the
-/// inverse gain. That is a difference of SignedDiffRow()s: (f[u + 1] - e[u +
-/// 1]) - (f[u - 1] - e[u - 1]). Returns the number of foreground pixels.
-/// Precondition: width >= 3.
+/// the expected background by at least texture[u] (the pixel's noise
+/// bound; 0: not tested), and after the inverse gain by at least `floor`
+/// (the configured texture threshold). That is a difference of
+/// SignedDiffRow()s: (f[u + 1] - e[u + 1]) - (f[u - 1] - e[u - 1]). The
+/// noise bound is not divided by the gain, as the floor is: a camera's noise
+/// does not dim with the light, and a bound near the noise, scaled up in dim
+/// light, would speckle the whole view. Returns the number of foreground
+/// pixels. Precondition: width >= 3.
 HG_VECTOR_CLONES int ThresholdMonoTextureRow(
     const std::uint8_t* __restrict frame, const std::int16_t* __restrict above,
     const std::int16_t* __restrict diff, const std::int16_t* __restrict below,
     const std::uint8_t* __restrict threshold, const std::uint8_t* __restrict texture, int width,
-    std::uint16_t inverse_gain_q8, std::uint8_t* __restrict mask) {
+    std::uint16_t inverse_gain_q8, std::uint16_t floor, std::uint8_t* __restrict mask) {
   auto scale = [inverse_gain_q8](std::int16_t d) {
-    const auto a = static_cast<std::uint16_t>(d < 0 ? -d : d);
     // Thresholds are at most 255, so a difference beyond it needs no scaling.
-    const std::uint16_t clamped = a < 255 ? a : 255;
-    return MulHigh(static_cast<std::uint16_t>(clamped << 8), inverse_gain_q8);
+    return MulHigh(static_cast<std::uint16_t>(Magnitude(d) << 8), inverse_gain_q8);
   };
   int count = 0;
   for (const int u : {0, width - 1}) {  // Brightness only: a neighbour is missing.
@@ -176,11 +184,73 @@ HG_VECTOR_CLONES int ThresholdMonoTextureRow(
   }
   for (int u = 1; u + 1 < width; ++u) {
     // Each difference in [-255, 255], theirs in [-510, 510]: int16.
-    const std::uint16_t tx = scale(static_cast<std::int16_t>(diff[u + 1] - diff[u - 1]));
-    const std::uint16_t ty = scale(static_cast<std::int16_t>(below[u] - above[u]));
-    const std::uint16_t t = tx > ty ? tx : ty;
+    const std::uint8_t tx = Magnitude(static_cast<std::int16_t>(diff[u + 1] - diff[u - 1]));
+    const std::uint8_t ty = Magnitude(static_cast<std::int16_t>(below[u] - above[u]));
+    const std::uint8_t t = tx > ty ? tx : ty;
+    const std::uint16_t scaled = MulHigh(static_cast<std::uint16_t>(t << 8), inverse_gain_q8);
     const bool foreground = (scale(diff[u]) >= threshold[u]) | (frame[u] >= kClipped) |
-                            ((texture[u] != 0) & (t >= texture[u]));
+                            ((texture[u] != 0) & (t >= texture[u]) & (scaled >= floor));
+    mask[u] = foreground ? 255 : 0;
+    count += foreground ? 1 : 0;
+  }
+  return count;
+}
+
+/// Colour frames with the texture test, first pass over the n = 3 * width
+/// samples of a row (channels interleaved like the frame), from its
+/// SignedDiffRow() `diff` and those of the rows above and below:
+/// bright[i] = the sample's brightness difference after the inverse gain
+/// (255 where the frame is clipped), texture[i] = the larger of its texture
+/// differences along the row and the column, not divided by the gain
+/// (ThresholdMonoTextureRow; 0 for the first and the last pixel, whose row
+/// neighbour is missing), both saturated to 255.
+/// Precondition: n >= 9.
+HG_VECTOR_CLONES void RgbTextureDiffRow(const std::uint8_t* __restrict frame,
+                                        const std::int16_t* __restrict above,
+                                        const std::int16_t* __restrict diff,
+                                        const std::int16_t* __restrict below, int n,
+                                        std::uint16_t inverse_gain_q8,
+                                        std::uint8_t* __restrict bright,
+                                        std::uint8_t* __restrict texture) {
+  auto scale = [inverse_gain_q8](std::int16_t d) {
+    const auto a = static_cast<std::uint16_t>(d < 0 ? -d : d);
+    const std::uint16_t clamped = a < 255 ? a : 255;
+    const std::uint16_t s = MulHigh(static_cast<std::uint16_t>(clamped << 8), inverse_gain_q8);
+    return static_cast<std::uint8_t>(s < 255 ? s : 255);
+  };
+  for (int i = 0; i < n; ++i) {
+    const std::uint8_t clipped = frame[i] >= kClipped ? 255 : 0;
+    bright[i] = static_cast<std::uint8_t>(scale(diff[i]) | clipped);
+  }
+  for (int i = 0; i < 3; ++i) texture[i] = texture[n - 3 + i] = 0;
+  for (int i = 3; i + 3 < n; ++i) {
+    // Each difference in [-255, 255], theirs in [-510, 510]: int16.
+    const std::uint8_t tx = Magnitude(static_cast<std::int16_t>(diff[i + 3] - diff[i - 3]));
+    const std::uint8_t ty = Magnitude(static_cast<std::int16_t>(below[i] - above[i]));
+    texture[i] = tx > ty ? tx : ty;
+  }
+}
+
+/// Second pass: mask[u] = 255 iff some channel's brightness difference
+/// reaches threshold[u], or some channel's texture difference reaches
+/// texture_threshold[u] (0: not tested) and, after the inverse gain, `floor`
+/// (ThresholdMonoTextureRow). Returns the number of foreground pixels.
+HG_VECTOR_CLONES int ThresholdRgbTextureRow(const std::uint8_t* __restrict bright,
+                                            const std::uint8_t* __restrict texture,
+                                            const std::uint8_t* __restrict threshold,
+                                            const std::uint8_t* __restrict texture_threshold,
+                                            int width, std::uint16_t inverse_gain_q8,
+                                            std::uint16_t floor, std::uint8_t* __restrict mask) {
+  int count = 0;
+  for (int u = 0; u < width; ++u) {
+    const std::uint8_t b01 = bright[3 * u] > bright[3 * u + 1] ? bright[3 * u] : bright[3 * u + 1];
+    const std::uint8_t b = b01 > bright[3 * u + 2] ? b01 : bright[3 * u + 2];
+    const std::uint8_t t01 =
+        texture[3 * u] > texture[3 * u + 1] ? texture[3 * u] : texture[3 * u + 1];
+    const std::uint8_t t = t01 > texture[3 * u + 2] ? t01 : texture[3 * u + 2];
+    const std::uint16_t scaled = MulHigh(static_cast<std::uint16_t>(t << 8), inverse_gain_q8);
+    const bool foreground = (b >= threshold[u]) | ((texture_threshold[u] != 0) &
+                                                   (t >= texture_threshold[u]) & (scaled >= floor));
     mask[u] = foreground ? 255 : 0;
     count += foreground ? 1 : 0;
   }
@@ -301,7 +371,8 @@ BackgroundModel::BackgroundModel(int width, int height, const BackgroundModelOpt
   threshold_.assign(pixels, 0);
   if (options_.texture_threshold > 0) {
     texture_threshold_.assign(pixels, 0);
-    diff_rows_.assign(3 * static_cast<std::size_t>(width), 0);
+    diff_rows_.assign(9 * static_cast<std::size_t>(width), 0);  // Three rows of RGB.
+    row_texture_.assign(3 * static_cast<std::size_t>(width), 0);
   }
   tiles_x_ = (width + kTile - 1) / kTile;
   tiles_y_ = (height + kTile - 1) / kTile;
@@ -533,8 +604,9 @@ int BackgroundModel::ThresholdAt(int u, int v) const {
 
 int BackgroundModel::TextureThresholdAt(int u, int v) const {
   HG_CHECK(u >= 0 && u < width_ && v >= 0 && v < height_);
-  if (texture_threshold_.empty() || channels_ != 1) return 0;
-  return texture_threshold_[static_cast<std::size_t>(v) * width_ + u];
+  if (texture_threshold_.empty()) return 0;
+  const std::uint8_t bound = texture_threshold_[static_cast<std::size_t>(v) * width_ + u];
+  return bound == 0 ? 0 : std::max<int>(bound, options_.texture_threshold);
 }
 
 void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common::ImageU8* mask) {
@@ -552,10 +624,10 @@ void BackgroundModel::ApplyFrame(const std::uint8_t* frame, int channels, common
   if (learning()) {
     Learn(frame);
     ++frames_learned_;
+    ++frames_applied_;
     if (!learning()) FinishLearning();
     std::fill(mask->pixels.begin(), mask->pixels.end(), 255);
     foreground_fraction_ = 1.0;
-    ++frames_applied_;
     return;
   }
   if (options_.compensate_gain) {
@@ -660,6 +732,9 @@ void BackgroundModel::Learn(const std::uint8_t* frame) {
 }
 
 void BackgroundModel::FinishLearning() {
+  // Adaptation's row phase counts from here, so that a background taken up
+  // by Load() adapts exactly as the model that saved it.
+  frames_applied_ = 0;
   // Mean absolute deviation of a Gaussian is sigma * sqrt(2 / pi).
   const double sigma_per_unit =
       deviation_frames_ > 0 ? std::sqrt(M_PI / 2.0) / (4.0 * deviation_frames_) : 0.0;
@@ -694,7 +769,7 @@ void BackgroundModel::FinishLearning() {
 
 void BackgroundModel::FinishTextureThresholds(double sigma_per_unit) {
   std::fill(texture_threshold_.begin(), texture_threshold_.end(), 0);
-  if (channels_ != 1 || width_ < 3 || height_ < 3) return;
+  if (width_ < 3 || height_ < 3) return;
   // The texture compares differences of two pixels: their noise adds up. A
   // neighbour that is unreliable (its deviation saturated) makes the pixel's
   // texture untested; its brightness still is.
@@ -703,13 +778,19 @@ void BackgroundModel::FinishTextureThresholds(double sigma_per_unit) {
     for (int u = 1; u + 1 < width_; ++u) {
       const std::size_t p = static_cast<std::size_t>(v) * width_ + u;
       const std::size_t w = static_cast<std::size_t>(width_);
-      const std::uint16_t noisiest =
-          std::max({deviation_[p - 1], deviation_[p + 1], deviation_[p - w], deviation_[p + w]});
+      const std::size_t c = static_cast<std::size_t>(channels_);
+      std::uint16_t noisiest = 0;
+      for (const std::size_t q : {p - 1, p + 1, p - w, p + w}) {
+        for (std::size_t k = 0; k < c; ++k) noisiest = std::max(noisiest, deviation_[q * c + k]);
+      }
       if (threshold_[p] == 0 || noisiest == 0xFFFF) continue;
-      const double t = std::max<double>(options_.texture_threshold, scale * noisiest);
-      const auto rounded = static_cast<int>(std::ceil(t - 1e-9));
-      texture_threshold_[p] =
-          rounded > options_.max_threshold ? 0 : static_cast<std::uint8_t>(rounded);
+      // The noise bound alone (at least 1: 0 marks untested pixels); the
+      // configured threshold is the floor it is tested beside, after the
+      // gain (ThresholdMonoTextureRow).
+      const auto bound = std::max(1, static_cast<int>(std::ceil(scale * noisiest - 1e-9)));
+      texture_threshold_[p] = std::max(bound, options_.texture_threshold) > options_.max_threshold
+                                  ? 0
+                                  : static_cast<std::uint8_t>(bound);
     }
   }
 }
@@ -751,11 +832,12 @@ void BackgroundModel::Process(const std::uint8_t* frame, std::uint8_t* mask) {
 
 const std::int16_t* BackgroundModel::DiffRow(int v, const std::uint8_t* frame) {
   const int slot = v % 3;
-  std::int16_t* row = diff_rows_.data() + static_cast<std::size_t>(slot) * width_;
+  const int n = width_ * channels_;
+  std::int16_t* row = diff_rows_.data() + static_cast<std::size_t>(slot) * n;
   if (diff_row_of_[slot] != v) {
-    const std::size_t start = static_cast<std::size_t>(v) * width_;
-    SignedDiffRow(frame + start, mean_high_.data() + start, width_,
-                  static_cast<std::uint16_t>(gain_q8_), row);
+    const std::size_t start = static_cast<std::size_t>(v) * n;
+    SignedDiffRow(frame + start, mean_high_.data() + start, n, static_cast<std::uint16_t>(gain_q8_),
+                  row);
     diff_row_of_[slot] = v;
   }
   return row;
@@ -771,14 +853,24 @@ int BackgroundModel::ClassifyRow(int v, const std::uint8_t* frame, std::uint8_t*
   const std::uint8_t* t = threshold_.data() + row;
   std::uint8_t* out = mask + row;
   int count;
+  const bool texture = !texture_threshold_.empty() && v > 0 && v + 1 < height_ && width_ >= 3;
   if (c == 3) {
-    AbsDiffRow(f, m, 3 * width_, gain_q8, inverse_gain_q8, row_diff_.data());
-    count = ThresholdRgbRow(row_diff_.data(), t, width_, out);
+    if (texture) {
+      RgbTextureDiffRow(f, DiffRow(v - 1, frame), DiffRow(v, frame), DiffRow(v + 1, frame),
+                        3 * width_, inverse_gain_q8, row_diff_.data(), row_texture_.data());
+      count = ThresholdRgbTextureRow(row_diff_.data(), row_texture_.data(), t,
+                                     texture_threshold_.data() + row, width_, inverse_gain_q8,
+                                     static_cast<std::uint16_t>(options_.texture_threshold), out);
+    } else {
+      AbsDiffRow(f, m, 3 * width_, gain_q8, inverse_gain_q8, row_diff_.data());
+      count = ThresholdRgbRow(row_diff_.data(), t, width_, out);
+    }
   } else {
-    if (!texture_threshold_.empty() && v > 0 && v + 1 < height_ && width_ >= 3) {
+    if (texture) {
       count = ThresholdMonoTextureRow(f, DiffRow(v - 1, frame), DiffRow(v, frame),
                                       DiffRow(v + 1, frame), t, texture_threshold_.data() + row,
-                                      width_, inverse_gain_q8, out);
+                                      width_, inverse_gain_q8,
+                                      static_cast<std::uint16_t>(options_.texture_threshold), out);
     } else {
       count = ThresholdMonoRow(f, m, t, width_, gain_q8, inverse_gain_q8, out);
     }

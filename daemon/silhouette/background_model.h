@@ -25,17 +25,23 @@ struct BackgroundModelOptions {
   /// being the pixel's noise learned at start-up (largest over its channels).
   int min_threshold = 18;
   double noise_sigmas = 4.0;
-  /// Grey frames (Mono8, and raw Bayer mosaics, whose neighbours one pixel
-  /// apart along a row or a column are sites of one colour): a pixel is also
-  /// foreground when its texture differs from the background's, that is when
-  /// the difference of its two neighbours along the row, or along the
-  /// column, differs from the background's by at least max(texture_threshold,
-  /// noise_sigmas * sqrt(2) * sigma), sigma being the largest noise of those
-  /// neighbours. Brightness alone misses a person whose grey matches the
-  /// background behind them; where the background is textured, the person
-  /// hides its texture. 0: off. Colour frames are not tested so (the
-  /// pipeline leaves it off for raw Bayer mosaics too, PipelineCamera).
-  int texture_threshold = 12;
+  /// A pixel is also foreground when its texture differs from the
+  /// background's, that is when the difference of its two neighbours along
+  /// the row, or along the column, differs from the background's (in some
+  /// channel, for colour frames) by at least texture_threshold after the
+  /// inverse gain (as brightness differences are scaled in dim light), and
+  /// by at least noise_sigmas * sqrt(2) * sigma, sigma being the largest
+  /// noise of those neighbours, not scaled: a camera's noise does not dim
+  /// with the light. Brightness alone misses a person whose colour or grey
+  /// matches the background behind them; where the background is textured,
+  /// the person hides its texture. 0: off. The pipeline leaves it off for
+  /// raw Bayer mosaics (PipelineCamera), whose neighbours are of other
+  /// colours. The default leaves room above the noise for the lag of slow
+  /// adaptation: at 12, a background of sigma 2 that brightened locally by
+  /// 40 levels in 20 s behind a sharp light edge turned foreground tile by
+  /// tile, the tiles near foreground, which may not adapt, falling behind
+  /// their neighbours.
+  int texture_threshold = 14;
   /// Pixels whose threshold would exceed this (flicker, a monitor in view) are
   /// unreliable: always foreground, since nothing can be certified there.
   int max_threshold = 64;
@@ -80,9 +86,10 @@ void ValidateBackgroundModelOptions(const BackgroundModelOptions& options);
 /// first frame after construction or Reset() fixes the format (RGB or grey); a
 /// frame of the other format restarts learning.
 ///
-/// Cost (tests/bench/background_bench.cc): about 2 ms per Full HD RGB frame and
-/// 1 ms per Mono8 frame on one core with AVX2; shadows as background add a
-/// scalar pass over foreground pixels.
+/// Cost (tests/bench/background_bench.cc): about 3 ms per Full HD RGB frame and
+/// 1.5 ms per Mono8 frame on one core with AVX2, the texture test included
+/// (brightness alone: about 2 and 1 ms); shadows as background add a scalar
+/// pass over foreground pixels.
 ///
 /// Thread-compatible (one camera's silhouette worker owns it).
 class BackgroundModel {
@@ -140,10 +147,11 @@ class BackgroundModel {
   /// The foreground threshold of pixel (u, v) in grey levels; -1 for an
   /// unreliable pixel (always foreground). Meaningful once learning ended.
   [[nodiscard]] int ThresholdAt(int u, int v) const;
-  /// The texture threshold of pixel (u, v) (BackgroundModelOptions::
-  /// texture_threshold); 0 where the texture is not tested (off, colour
-  /// frames, the image's outer pixels, unreliable pixels, a threshold beyond
-  /// max_threshold). Meaningful once learning ended.
+  /// The texture threshold of pixel (u, v) at the reference light, the
+  /// larger of BackgroundModelOptions::texture_threshold and its noise bound;
+  /// 0 where the texture is not tested (off, the image's outer pixels,
+  /// unreliable pixels, a threshold beyond max_threshold). Meaningful once
+  /// learning ended.
   [[nodiscard]] int TextureThresholdAt(int u, int v) const;
 
   /// The 8x8-pixel tiles (ceil(width / 8) per row, row-major) that hold
@@ -170,7 +178,7 @@ class BackgroundModel {
   void Process(const std::uint8_t* frame, std::uint8_t* mask);
   /// Mask row v, this row's tile flags; returns its foreground count.
   int ClassifyRow(int v, const std::uint8_t* frame, std::uint8_t* mask);
-  /// Grey frames with the texture test: row v of frame - gain * mean (signed),
+  /// With the texture test: row v of frame - gain * mean (signed, per sample),
   /// computed once per frame (rows are classified in order; three are kept).
   const std::int16_t* DiffRow(int v, const std::uint8_t* frame);
   /// The free tiles of tile row ty (foreground of tile rows ty +- guard known)
@@ -222,8 +230,8 @@ class BackgroundModel {
   std::vector<std::uint8_t> peak_;
   // Per pixel.
   std::vector<std::uint8_t> threshold_;  ///< Foreground iff max |d| >= this; 0 = always.
-  /// Grey frames with texture_threshold: foreground also iff the texture
-  /// differs by this much (0: not tested). Empty when off.
+  /// With texture_threshold: the noise bound of the texture test, at least
+  /// 1 (0: not tested). Empty when off.
   std::vector<std::uint8_t> texture_threshold_;
   // Per 8x8 tile.
   int tiles_x_ = 0;
@@ -233,6 +241,7 @@ class BackgroundModel {
   std::vector<std::uint8_t> tile_free_;        ///< No foreground within the guard: may adapt.
   // Scratch.
   std::vector<std::uint8_t> row_diff_;          ///< |frame - expected| of one row, per channel.
+  std::vector<std::uint8_t> row_texture_;       ///< Colour texture differences of one row.
   std::vector<std::int16_t> diff_rows_;         ///< DiffRow(): three rows, row v in slot v % 3.
   std::array<int, 3> diff_row_of_{-1, -1, -1};  ///< The row each slot holds (-1: none).
   // The gain sample: a sparse, staggered grid of pixels. The gain is measured

@@ -133,6 +133,16 @@ void BM_BackgroundModelFullHd(benchmark::State& state) {
 }
 BENCHMARK(BM_BackgroundModelFullHd)->Unit(benchmark::kMillisecond);
 
+// The same without the texture test (brightness alone): what the test costs
+// on colour frames.
+void BM_BackgroundModelFullHdBrightnessOnly(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  silhouette::BackgroundModelOptions options;
+  options.texture_threshold = 0;
+  RunModel(state, w.empty, w.frames, options);
+}
+BENCHMARK(BM_BackgroundModelFullHdBrightnessOnly)->Unit(benchmark::kMillisecond);
+
 // Shadows reported as background: a second, scalar pass over foreground pixels.
 void BM_BackgroundModelFullHdShadowsAsBackground(benchmark::State& state) {
   const Workload& w = GetWorkload();

@@ -1,6 +1,7 @@
 #include "silhouette/background_model.h"
 
 #include <algorithm>
+#include <array>
 #include <atomic>
 #include <cmath>
 #include <cstdint>
@@ -515,6 +516,7 @@ TEST(BackgroundModelTest, PersonStandingStillForAMinuteIsNeverAbsorbed) {
   double worst_false_positive = 0.0;
   double worst_gain_error = 0.0;
   common::ImageU8 guard;
+  common::ImageU8 previous = mask;
   const int frames = static_cast<int>(kSeconds * kRateHz);
   for (int i = options.learn_frames; i < frames; ++i) {
     seq.Render(i);
@@ -529,7 +531,18 @@ TEST(BackgroundModelTest, PersonStandingStillForAMinuteIsNeverAbsorbed) {
     worst_false_positive = std::max(worst_false_positive, false_positive);
     ASSERT_LE(false_positive, 0.03) << "frame " << i << " t " << seq.t_s;
     worst_gain_error = std::max(worst_gain_error, std::abs(model.gain() - seq.LightGain()));
-    if (i % 150 == 0) guard = Dilate(mask, options.guard_px);
+    // The guard around what stayed foreground (the person, their shadow):
+    // a pixel foreground in this frame and the one before. Noise can make a
+    // single pixel foreground for a frame; the background around it adapts
+    // again in the next.
+    if (i % 150 == 0) {
+      common::ImageU8 lasting = mask;
+      for (std::size_t p = 0; p < lasting.pixels.size(); ++p) {
+        lasting.pixels[p] = mask.pixels[p] != 0 && previous.pixels[p] != 0 ? 255 : 0;
+      }
+      guard = Dilate(lasting, options.guard_px);
+    }
+    previous = mask;
   }
   // The person's pixels, and the guard around whatever was foreground, kept the
   // empty cell's background through the whole minute.
@@ -840,7 +853,7 @@ TEST(BackgroundModelTest, AGreyMatchingTheBackgroundIsFoundByTheTextureItHides) 
     }
   }
   auto observe = [&](double gain, bool patch, std::mt19937_64* rng) {
-    std::normal_distribution<double> noise(0.0, 2.0);
+    std::normal_distribution<double> noise(0.0, 1.5);
     common::ImageU8 frame(kW, kH);
     for (int v = 0; v < kH; ++v) {
       for (int u = 0; u < kW; ++u) {
@@ -875,6 +888,60 @@ TEST(BackgroundModelTest, AGreyMatchingTheBackgroundIsFoundByTheTextureItHides) 
         // Inside the patch's rim: a rim pixel has one neighbour in the
         // background, and its texture differs by half as much (the
         // pipeline's dilation covers the rim from the pixels inside).
+        for (int v = 31; v < 89; ++v) {
+          for (int u = 41; u < 119; ++u) missed += mask.At(u, v) == 0 ? 1 : 0;
+        }
+      }
+      if (texture) {
+        EXPECT_EQ(missed, 0) << gain;
+      } else {
+        EXPECT_GT(missed, 3 * 78 * 58 / 6) << gain << ": the brightness test missed little";
+      }
+    }
+  }
+}
+
+// The same for colour: a patch of the background's mean colour on
+// stripes that only the red channel shows (green and blue are flat), at
+// dimmed and brightened light too. Each channel's texture is tested.
+TEST(BackgroundModelTest, AColourMatchingTheBackgroundIsFoundByTheTextureItHides) {
+  constexpr int kW = 160;
+  constexpr int kH = 120;
+  auto observe = [&](double gain, bool patch, std::mt19937_64* rng) {
+    std::normal_distribution<double> noise(0.0, 1.5);
+    common::ImageRgb8 frame(kW, kH);
+    for (int v = 0; v < kH; ++v) {
+      for (int u = 0; u < kW; ++u) {
+        const bool inside = patch && u >= 40 && u < 120 && v >= 30 && v < 90;
+        const double red = inside ? 128.0 : 128.0 + 40.0 * std::sin(2.0 * M_PI * u / 16.0);
+        const std::array<double, 3> rgb{red, 90.0, 150.0};
+        for (int c = 0; c < 3; ++c) {
+          frame.Pixel(u, v)[c] = static_cast<std::uint8_t>(
+              std::clamp(std::lround(rgb[c] * gain + noise(*rng)), 0L, 255L));
+        }
+      }
+    }
+    return frame;
+  };
+  BackgroundModelOptions brightness_only;
+  brightness_only.texture_threshold = 0;
+  for (const BackgroundModelOptions& options : {BackgroundModelOptions{}, brightness_only}) {
+    const bool texture = options.texture_threshold > 0;
+    std::mt19937_64 rng(13);
+    BackgroundModel model(kW, kH, options);
+    common::ImageU8 mask;
+    for (int i = 0; i < options.learn_frames; ++i) model.Apply(observe(1.0, false, &rng), &mask);
+    EXPECT_EQ(model.TextureThresholdAt(80, 60), texture ? options.texture_threshold : 0);
+    EXPECT_EQ(model.TextureThresholdAt(kW - 1, 60), 0);
+    EXPECT_EQ(model.TextureThresholdAt(80, 0), 0);
+    for (const double gain : {1.0, 0.8, 1.2}) {
+      for (int i = 0; i < 3; ++i) {
+        model.Apply(observe(gain, false, &rng), &mask);
+        EXPECT_LT(model.foreground_fraction(), 0.002) << gain << " texture " << texture;
+      }
+      int missed = 0;
+      for (int i = 0; i < 3; ++i) {
+        model.Apply(observe(gain, true, &rng), &mask);
         for (int v = 31; v < 89; ++v) {
           for (int u = 41; u < 119; ++u) missed += mask.At(u, v) == 0 ? 1 : 0;
         }
@@ -1142,6 +1209,16 @@ TEST(BackgroundModelTest, AdaptsSlowLocalChangesOnlyFarFromForeground) {
     }
     worst_lit_false_positive =
         std::max(worst_lit_false_positive, static_cast<double>(lit_fg) / (40.0 * kH));
+    if (i % 50 == 0) {
+      std::printf("frame %d gain %.4f cols:", i, model.gain());
+      for (int u = 0; u < 100; u += 4) {
+        int n = 0;
+        for (int v = 0; v < kH; ++v)
+          for (int k = 0; k < 4; ++k) n += mask.At(u + k, v) != 0;
+        std::printf(" %d", n);
+      }
+      std::printf("\n");
+    }
   }
   // The brightening was followed (well inside the lit part) ...
   EXPECT_LE(worst_lit_false_positive, 0.01);
@@ -1155,6 +1232,61 @@ TEST(BackgroundModelTest, AdaptsSlowLocalChangesOnlyFarFromForeground) {
   // ... and where the light did not change, the background did not drift.
   EXPECT_NEAR(model.MeanAt(80, 10, 1), learned[(10 * kW + 80) * 3 + 1], 1.5);
   EXPECT_NEAR(model.gain(), 1.0, 0.01);
+}
+
+// The same slow local brightening behind a sharp light edge, for a grey
+// camera with the texture test: the background follows it, and the edge,
+// where the lit side's background lags the frame by a few levels, does not
+// start foreground that spreads. (At a texture threshold of 12, this
+// background's noise bound, foreground spread tile by tile over the lit part:
+// tiles near foreground may not adapt and fall behind their neighbours.)
+TEST(BackgroundModelTest, AGreyCameraFollowsASlowLocalChangeBehindALightEdge) {
+  constexpr int kW = 160;
+  constexpr int kH = 120;
+  std::mt19937_64 texture_rng(7);
+  std::uniform_int_distribution<int> level(40, 200);
+  common::ImageU8 base(kW, kH);
+  for (std::uint8_t& p : base.pixels) p = static_cast<std::uint8_t>(level(texture_rng));
+  std::mt19937_64 rng(8);
+  std::normal_distribution<double> noise(0.0, 2.0);
+  // Frame i; i < 0: the empty cell as learned.
+  auto frame_at = [&](int i) {
+    common::ImageU8 f(kW, kH);
+    const double lift = std::clamp(40.0 * i / 600.0, 0.0, 40.0);
+    for (int v = 0; v < kH; ++v) {
+      for (int u = 0; u < kW; ++u) {
+        double x = base.At(u, v) + noise(rng);
+        if (i >= 0 && u >= 100 && u < 130 && v >= 40 && v < 80) {
+          x = 230.0;  // An object that stays.
+        } else if (u < 50) {
+          x += lift;
+        }
+        f.At(u, v) = static_cast<std::uint8_t>(std::clamp(std::lround(x), 0L, 255L));
+      }
+    }
+    return f;
+  };
+  const BackgroundModelOptions options;
+  ASSERT_GT(options.texture_threshold, 0);
+  BackgroundModel model(kW, kH, options);
+  common::ImageU8 mask;
+  for (int i = 0; i < options.learn_frames; ++i) model.Apply(frame_at(-1), &mask);
+  ASSERT_FALSE(model.learning());
+  double worst_lit_false_positive = 0.0;
+  for (int i = 0; i < 900; ++i) {
+    model.Apply(frame_at(i), &mask);
+    for (int v = 40; v < 80; ++v) {
+      for (int u = 100; u < 130; ++u) ASSERT_EQ(mask.At(u, v), 255) << u << " " << v << " " << i;
+    }
+    long long lit_fg = 0;
+    for (int v = 0; v < kH; ++v) {
+      for (int u = 0; u < 40; ++u) lit_fg += mask.At(u, v) != 0 ? 1 : 0;
+    }
+    worst_lit_false_positive =
+        std::max(worst_lit_false_positive, static_cast<double>(lit_fg) / (40.0 * kH));
+  }
+  EXPECT_LE(worst_lit_false_positive, 0.01);
+  EXPECT_NEAR(model.MeanAt(10, 60, 0), base.At(10, 60) + 40.0, 3.0);
 }
 
 TEST(BackgroundModelTest, AnotherPixelFormatRestartsLearning) {
