@@ -1209,16 +1209,6 @@ TEST(BackgroundModelTest, AdaptsSlowLocalChangesOnlyFarFromForeground) {
     }
     worst_lit_false_positive =
         std::max(worst_lit_false_positive, static_cast<double>(lit_fg) / (40.0 * kH));
-    if (i % 50 == 0) {
-      std::printf("frame %d gain %.4f cols:", i, model.gain());
-      for (int u = 0; u < 100; u += 4) {
-        int n = 0;
-        for (int v = 0; v < kH; ++v)
-          for (int k = 0; k < 4; ++k) n += mask.At(u + k, v) != 0;
-        std::printf(" %d", n);
-      }
-      std::printf("\n");
-    }
   }
   // The brightening was followed (well inside the lit part) ...
   EXPECT_LE(worst_lit_false_positive, 0.01);
