@@ -833,106 +833,38 @@ TEST(BackgroundModelTest, APersonCoveringMostOfTheViewDoesNotSetTheGain) {
   }
 }
 
-// A grey camera tells a person from the background by brightness alone: one
-// whose grey matches the background behind them is background wherever it
-// does. Before a textured background they still hide its texture: the
-// difference of a pixel's neighbours changes. Here a flat patch before a
-// background whose grey varies along the rows by +-40 levels (period 16 px),
-// under three lights: brightness alone misses the patch where the
-// background is within the threshold of it (a fifth to a third); with the texture
-// every pixel inside its rim is foreground, while noise and the light add
-// none.
-TEST(BackgroundModelTest, AGreyMatchingTheBackgroundIsFoundByTheTextureItHides) {
-  constexpr int kW = 160;
-  constexpr int kH = 120;
-  common::ImageU8 base(kW, kH);
-  for (int v = 0; v < kH; ++v) {
-    for (int u = 0; u < kW; ++u) {
-      base.pixels[static_cast<std::size_t>(v) * kW + u] =
-          static_cast<std::uint8_t>(std::lround(128.0 + 40.0 * std::sin(2.0 * M_PI * u / 16.0)));
-    }
-  }
-  auto observe = [&](double gain, bool patch, std::mt19937_64* rng) {
-    std::normal_distribution<double> noise(0.0, 1.5);
-    common::ImageU8 frame(kW, kH);
-    for (int v = 0; v < kH; ++v) {
-      for (int u = 0; u < kW; ++u) {
-        const bool inside = patch && u >= 40 && u < 120 && v >= 30 && v < 90;
-        const double value = (inside ? 128.0 : base.At(u, v)) * gain + noise(*rng);
-        frame.pixels[static_cast<std::size_t>(v) * kW + u] =
-            static_cast<std::uint8_t>(std::clamp(std::lround(value), 0L, 255L));
-      }
-    }
-    return frame;
-  };
+constexpr int kStripesW = 160;
+constexpr int kStripesH = 120;
+
+/// The background's level at column u: stripes of +-40 around 128.
+double Stripe(int u) { return 128.0 + 40.0 * std::sin(2.0 * M_PI * u / 16.0); }
+
+/// Whether (u, v) lies in the flat patch.
+bool InPatch(int u, int v) { return u >= 40 && u < 120 && v >= 30 && v < 90; }
+
+/// Runs a model with and without the texture test on frames of
+/// observe(gain, patch, rng) (kStripesW x kStripesH, the patch of
+/// InPatch()): learning the empty cell, then under each light, the empty cell
+/// (noise and the light add under 0.2 % foreground) and the patch (with the
+/// texture every pixel inside its rim is foreground; without, more than a
+/// sixth is missed). A rim pixel has one neighbour in the background, and
+/// its texture differs by half as much (the pipeline's dilation covers the
+/// rim from the pixels inside).
+template <typename Observe>
+void ExpectTheTextureFindsThePatch(const Observe& observe, std::uint64_t seed) {
   ASSERT_GT(BackgroundModelOptions{}.texture_threshold, 0) << "the default tests the texture";
   BackgroundModelOptions brightness_only;
   brightness_only.texture_threshold = 0;
   for (const BackgroundModelOptions& options : {BackgroundModelOptions{}, brightness_only}) {
     const bool texture = options.texture_threshold > 0;
-    std::mt19937_64 rng(12);
-    BackgroundModel model(kW, kH, options);
+    std::mt19937_64 rng(seed);
+    BackgroundModel model(kStripesW, kStripesH, options);
     common::ImageU8 mask;
     for (int i = 0; i < options.learn_frames; ++i) model.Apply(observe(1.0, false, &rng), &mask);
     EXPECT_EQ(model.TextureThresholdAt(80, 60), texture ? options.texture_threshold : 0);
-    EXPECT_EQ(model.TextureThresholdAt(0, 60), 0);  // No neighbour beyond the border.
-    for (const double gain : {1.0, 0.8, 1.2}) {
-      // The empty cell, then the patch, each a few frames.
-      for (int i = 0; i < 3; ++i) {
-        model.Apply(observe(gain, false, &rng), &mask);
-        EXPECT_LT(model.foreground_fraction(), 0.002) << gain << " texture " << texture;
-      }
-      int missed = 0;
-      for (int i = 0; i < 3; ++i) {
-        model.Apply(observe(gain, true, &rng), &mask);
-        // Inside the patch's rim: a rim pixel has one neighbour in the
-        // background, and its texture differs by half as much (the
-        // pipeline's dilation covers the rim from the pixels inside).
-        for (int v = 31; v < 89; ++v) {
-          for (int u = 41; u < 119; ++u) missed += mask.At(u, v) == 0 ? 1 : 0;
-        }
-      }
-      if (texture) {
-        EXPECT_EQ(missed, 0) << gain;
-      } else {
-        EXPECT_GT(missed, 3 * 78 * 58 / 6) << gain << ": the brightness test missed little";
-      }
-    }
-  }
-}
-
-// The same for colour: a patch of the background's mean colour on
-// stripes that only the red channel shows (green and blue are flat), at
-// dimmed and brightened light too. Each channel's texture is tested.
-TEST(BackgroundModelTest, AColourMatchingTheBackgroundIsFoundByTheTextureItHides) {
-  constexpr int kW = 160;
-  constexpr int kH = 120;
-  auto observe = [&](double gain, bool patch, std::mt19937_64* rng) {
-    std::normal_distribution<double> noise(0.0, 1.5);
-    common::ImageRgb8 frame(kW, kH);
-    for (int v = 0; v < kH; ++v) {
-      for (int u = 0; u < kW; ++u) {
-        const bool inside = patch && u >= 40 && u < 120 && v >= 30 && v < 90;
-        const double red = inside ? 128.0 : 128.0 + 40.0 * std::sin(2.0 * M_PI * u / 16.0);
-        const std::array<double, 3> rgb{red, 90.0, 150.0};
-        for (int c = 0; c < 3; ++c) {
-          frame.Pixel(u, v)[c] = static_cast<std::uint8_t>(
-              std::clamp(std::lround(rgb[c] * gain + noise(*rng)), 0L, 255L));
-        }
-      }
-    }
-    return frame;
-  };
-  BackgroundModelOptions brightness_only;
-  brightness_only.texture_threshold = 0;
-  for (const BackgroundModelOptions& options : {BackgroundModelOptions{}, brightness_only}) {
-    const bool texture = options.texture_threshold > 0;
-    std::mt19937_64 rng(13);
-    BackgroundModel model(kW, kH, options);
-    common::ImageU8 mask;
-    for (int i = 0; i < options.learn_frames; ++i) model.Apply(observe(1.0, false, &rng), &mask);
-    EXPECT_EQ(model.TextureThresholdAt(80, 60), texture ? options.texture_threshold : 0);
-    EXPECT_EQ(model.TextureThresholdAt(kW - 1, 60), 0);
+    // No neighbour beyond the border.
+    EXPECT_EQ(model.TextureThresholdAt(0, 60), 0);
+    EXPECT_EQ(model.TextureThresholdAt(kStripesW - 1, 60), 0);
     EXPECT_EQ(model.TextureThresholdAt(80, 0), 0);
     for (const double gain : {1.0, 0.8, 1.2}) {
       for (int i = 0; i < 3; ++i) {
@@ -953,6 +885,54 @@ TEST(BackgroundModelTest, AColourMatchingTheBackgroundIsFoundByTheTextureItHides
       }
     }
   }
+}
+
+// A grey camera tells a person from the background by brightness alone: one
+// whose grey matches the background behind them is background wherever it
+// does. Before a textured background they still hide its texture: the
+// difference of a pixel's neighbours changes. Here a flat patch before a
+// background whose grey varies along the rows by +-40 levels (period 16 px),
+// under three lights: brightness alone misses the patch where the
+// background is within the threshold of it (a fifth to a third); with the texture
+// every pixel inside its rim is foreground, while noise and the light add
+// none.
+TEST(BackgroundModelTest, AGreyMatchingTheBackgroundIsFoundByTheTextureItHides) {
+  ExpectTheTextureFindsThePatch(
+      [](double gain, bool patch, std::mt19937_64* rng) {
+        std::normal_distribution<double> noise(0.0, 1.5);
+        common::ImageU8 frame(kStripesW, kStripesH);
+        for (int v = 0; v < kStripesH; ++v) {
+          for (int u = 0; u < kStripesW; ++u) {
+            const double value = (patch && InPatch(u, v) ? 128.0 : Stripe(u)) * gain + noise(*rng);
+            frame.At(u, v) = static_cast<std::uint8_t>(std::clamp(std::lround(value), 0L, 255L));
+          }
+        }
+        return frame;
+      },
+      12);
+}
+
+// The same for colour: a patch of the background's mean colour on
+// stripes that only the red channel shows (green and blue are flat). Each
+// channel's texture is tested.
+TEST(BackgroundModelTest, AColourMatchingTheBackgroundIsFoundByTheTextureItHides) {
+  ExpectTheTextureFindsThePatch(
+      [](double gain, bool patch, std::mt19937_64* rng) {
+        std::normal_distribution<double> noise(0.0, 1.5);
+        common::ImageRgb8 frame(kStripesW, kStripesH);
+        for (int v = 0; v < kStripesH; ++v) {
+          for (int u = 0; u < kStripesW; ++u) {
+            const std::array<double, 3> rgb{patch && InPatch(u, v) ? 128.0 : Stripe(u), 90.0,
+                                            150.0};
+            for (int c = 0; c < 3; ++c) {
+              frame.Pixel(u, v)[c] = static_cast<std::uint8_t>(
+                  std::clamp(std::lround(rgb[c] * gain + noise(*rng)), 0L, 255L));
+            }
+          }
+        }
+        return frame;
+      },
+      13);
 }
 
 // Grey frames too small to have a pixel with neighbours on every side are
@@ -1165,6 +1145,30 @@ TEST(BackgroundModelTest, ThresholdsFollowTheLearnedNoise) {
   }
 }
 
+/// Feeds frame_at(0 .. 899) (160 x 120: the object at x 100..129, y
+/// 40..79; the left part brightening) to a learned model, checks that the
+/// object is foreground in every frame, and returns the largest share of
+/// foreground in columns 0..39 (well inside the lit part).
+template <typename FrameAt>
+double RunTheLocalBrightening(BackgroundModel* model, const FrameAt& frame_at) {
+  common::ImageU8 mask;
+  double worst = 0.0;
+  for (int i = 0; i < 900; ++i) {
+    model->Apply(frame_at(i), &mask);
+    long long object = 0;
+    for (int v = 40; v < 80; ++v) {
+      for (int u = 100; u < 130; ++u) object += mask.At(u, v) != 0 ? 1 : 0;
+    }
+    EXPECT_EQ(object, 30 * 40) << "frame " << i;
+    long long lit = 0;
+    for (int v = 0; v < mask.height; ++v) {
+      for (int u = 0; u < 40; ++u) lit += mask.At(u, v) != 0 ? 1 : 0;
+    }
+    worst = std::max(worst, static_cast<double>(lit) / (40.0 * mask.height));
+  }
+  return worst;
+}
+
 // A slow local light change far from foreground is followed; an object that
 // stays put is never learned, and neither is anything within the guard.
 TEST(BackgroundModelTest, AdaptsSlowLocalChangesOnlyFarFromForeground) {
@@ -1197,19 +1201,7 @@ TEST(BackgroundModelTest, AdaptsSlowLocalChangesOnlyFarFromForeground) {
     return f;
   };
   const std::vector<double> learned = Means(model, 3);
-  double worst_lit_false_positive = 0.0;
-  for (int i = 0; i < 900; ++i) {
-    model.Apply(frame_at(i), &mask);
-    for (int v = 40; v < 80; ++v) {
-      for (int u = 100; u < 130; ++u) ASSERT_EQ(mask.At(u, v), 255) << u << " " << v << " " << i;
-    }
-    long long lit_fg = 0;
-    for (int v = 0; v < kH; ++v) {
-      for (int u = 0; u < 40; ++u) lit_fg += mask.At(u, v) != 0 ? 1 : 0;
-    }
-    worst_lit_false_positive =
-        std::max(worst_lit_false_positive, static_cast<double>(lit_fg) / (40.0 * kH));
-  }
+  const double worst_lit_false_positive = RunTheLocalBrightening(&model, frame_at);
   // The brightening was followed (well inside the lit part) ...
   EXPECT_LE(worst_lit_false_positive, 0.01);
   EXPECT_NEAR(model.MeanAt(10, 60, 0), learned[(60 * kW + 10) * 3] + 40.0, 3.0);
@@ -1262,19 +1254,7 @@ TEST(BackgroundModelTest, AGreyCameraFollowsASlowLocalChangeBehindALightEdge) {
   common::ImageU8 mask;
   for (int i = 0; i < options.learn_frames; ++i) model.Apply(frame_at(-1), &mask);
   ASSERT_FALSE(model.learning());
-  double worst_lit_false_positive = 0.0;
-  for (int i = 0; i < 900; ++i) {
-    model.Apply(frame_at(i), &mask);
-    for (int v = 40; v < 80; ++v) {
-      for (int u = 100; u < 130; ++u) ASSERT_EQ(mask.At(u, v), 255) << u << " " << v << " " << i;
-    }
-    long long lit_fg = 0;
-    for (int v = 0; v < kH; ++v) {
-      for (int u = 0; u < 40; ++u) lit_fg += mask.At(u, v) != 0 ? 1 : 0;
-    }
-    worst_lit_false_positive =
-        std::max(worst_lit_false_positive, static_cast<double>(lit_fg) / (40.0 * kH));
-  }
+  const double worst_lit_false_positive = RunTheLocalBrightening(&model, frame_at);
   EXPECT_LE(worst_lit_false_positive, 0.01);
   EXPECT_NEAR(model.MeanAt(10, 60, 0), base.At(10, 60) + 40.0, 3.0);
 }
