@@ -213,9 +213,7 @@ HG_VECTOR_CLONES void RgbTextureDiffRow(const std::uint8_t* __restrict frame,
                                         std::uint8_t* __restrict bright,
                                         std::uint8_t* __restrict texture) {
   auto scale = [inverse_gain_q8](std::int16_t d) {
-    const auto a = static_cast<std::uint16_t>(d < 0 ? -d : d);
-    const std::uint16_t clamped = a < 255 ? a : 255;
-    const std::uint16_t s = MulHigh(static_cast<std::uint16_t>(clamped << 8), inverse_gain_q8);
+    const std::uint16_t s = MulHigh(static_cast<std::uint16_t>(Magnitude(d) << 8), inverse_gain_q8);
     return static_cast<std::uint8_t>(s < 255 ? s : 255);
   };
   for (int i = 0; i < n; ++i) {
@@ -774,11 +772,11 @@ void BackgroundModel::FinishTextureThresholds(double sigma_per_unit) {
   // neighbour that is unreliable (its deviation saturated) makes the pixel's
   // texture untested; its brightness still is.
   const double scale = options_.noise_sigmas * std::sqrt(2.0) * sigma_per_unit;
+  const std::size_t w = static_cast<std::size_t>(width_);
+  const std::size_t c = static_cast<std::size_t>(channels_);
   for (int v = 1; v + 1 < height_; ++v) {
     for (int u = 1; u + 1 < width_; ++u) {
       const std::size_t p = static_cast<std::size_t>(v) * width_ + u;
-      const std::size_t w = static_cast<std::size_t>(width_);
-      const std::size_t c = static_cast<std::size_t>(channels_);
       std::uint16_t noisiest = 0;
       for (const std::size_t q : {p - 1, p + 1, p - w, p + w}) {
         for (std::size_t k = 0; k < c; ++k) noisiest = std::max(noisiest, deviation_[q * c + k]);

@@ -20,6 +20,7 @@
 #include "silhouette/tile_dilation.h"
 #include "sim/colour_renderer.h"
 #include "sim/scene.h"
+#include "support/luma_image.h"
 #include "support/sim_bodies.h"
 
 namespace hg::bench {
@@ -81,14 +82,6 @@ const Workload& GetWorkload() {
   return workload;
 }
 
-common::ImageU8 Grey(const common::ImageRgb8& rgb) {
-  common::ImageU8 grey(rgb.width, rgb.height);
-  for (std::size_t i = 0; i < grey.pixels.size(); ++i) {
-    grey.pixels[i] = static_cast<std::uint8_t>(common::Luma(rgb.pixels.data() + 3 * i));
-  }
-  return grey;
-}
-
 /// The workload as Mono8 frames, converted once per run.
 struct GreyWorkload {
   std::vector<common::ImageU8> empty;
@@ -98,8 +91,8 @@ const GreyWorkload& GetGreyWorkload() {
   static const GreyWorkload grey = [] {
     const Workload& w = GetWorkload();
     GreyWorkload g;
-    for (const auto& f : w.empty) g.empty.push_back(Grey(f));
-    for (const auto& f : w.frames) g.frames.push_back(Grey(f));
+    for (const auto& f : w.empty) g.empty.push_back(testing::LumaOf(f));
+    for (const auto& f : w.frames) g.frames.push_back(testing::LumaOf(f));
     return g;
   }();
   return grey;
@@ -133,13 +126,17 @@ void BM_BackgroundModelFullHd(benchmark::State& state) {
 }
 BENCHMARK(BM_BackgroundModelFullHd)->Unit(benchmark::kMillisecond);
 
-// The same without the texture test (brightness alone): what the test costs
-// on colour frames.
-void BM_BackgroundModelFullHdBrightnessOnly(benchmark::State& state) {
-  const Workload& w = GetWorkload();
+/// The default options without the texture test (brightness alone).
+silhouette::BackgroundModelOptions BrightnessOnly() {
   silhouette::BackgroundModelOptions options;
   options.texture_threshold = 0;
-  RunModel(state, w.empty, w.frames, options);
+  return options;
+}
+
+// The same without the texture test: what the test costs on colour frames.
+void BM_BackgroundModelFullHdBrightnessOnly(benchmark::State& state) {
+  const Workload& w = GetWorkload();
+  RunModel(state, w.empty, w.frames, BrightnessOnly());
 }
 BENCHMARK(BM_BackgroundModelFullHdBrightnessOnly)->Unit(benchmark::kMillisecond);
 
@@ -161,9 +158,7 @@ BENCHMARK(BM_BackgroundModelFullHdMono8)->Unit(benchmark::kMillisecond);
 // The same without the texture test (brightness alone): what the test costs.
 void BM_BackgroundModelFullHdMono8BrightnessOnly(benchmark::State& state) {
   const GreyWorkload& g = GetGreyWorkload();
-  silhouette::BackgroundModelOptions options;
-  options.texture_threshold = 0;
-  RunModel(state, g.empty, g.frames, options);
+  RunModel(state, g.empty, g.frames, BrightnessOnly());
 }
 BENCHMARK(BM_BackgroundModelFullHdMono8BrightnessOnly)->Unit(benchmark::kMillisecond);
 

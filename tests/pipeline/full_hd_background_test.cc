@@ -15,6 +15,7 @@
 #include "pipeline/pipeline.h"
 #include "sim/colour_renderer.h"
 #include "sim/scene.h"
+#include "support/luma_image.h"
 #include "support/sim_bodies.h"
 
 namespace hg::pipeline {
@@ -74,12 +75,7 @@ std::vector<int> FreePoints(const std::vector<Setting>& settings) {
     rgb.index = grey.index = static_cast<std::uint64_t>(i);
     for (int c = 0; c < static_cast<int>(loaded.cameras.size()); ++c) {
       (present ? with : without)[c].Render(people, t, rgb.index, &rgb.rgb);
-      // A grey camera's luma.
-      grey.grey = common::ImageU8(rgb.rgb.width, rgb.rgb.height);
-      for (std::size_t p = 0; p < grey.grey.pixels.size(); ++p) {
-        const std::uint8_t* q = rgb.rgb.pixels.data() + 3 * p;
-        grey.grey.pixels[p] = static_cast<std::uint8_t>(common::Luma(q));
-      }
+      testing::LumaOf(rgb.rgb, &grey.grey);  // A grey camera's frame.
       for (std::size_t k = 0; k < settings.size(); ++k) {
         pipelines[k]->Feed(c, settings[k].grey ? grey : rgb);
       }

@@ -14,6 +14,7 @@
 #include "sim/mask_renderer.h"
 #include "sim/scene.h"
 #include "support/allocation_counter.h"
+#include "support/luma_image.h"
 
 namespace hg::pipeline {
 namespace {
@@ -89,10 +90,7 @@ void RunAndCount(Frames kind) {
         colours[c].Render(people, t, f.index, &f.rgb);
         if (kind == Frames::kGrey) {  // Mono8: the texture test on the path too.
           f.kind = capture::FrameKind::kMono;
-          f.grey = common::ImageU8(f.rgb.width, f.rgb.height);
-          for (std::size_t p = 0; p < f.grey.pixels.size(); ++p) {
-            f.grey.pixels[p] = static_cast<std::uint8_t>(common::Luma(f.rgb.pixels.data() + 3 * p));
-          }
+          testing::LumaOf(f.rgb, &f.grey);
         }
       } else {
         f.kind = capture::FrameKind::kMask;

@@ -24,6 +24,7 @@
 #include "sim/mask_renderer.h"
 #include "sim/scene.h"
 #include "support/allocation_counter.h"
+#include "support/luma_image.h"
 
 namespace hg::silhouette {
 namespace {
@@ -150,15 +151,6 @@ common::ImageU8 Invert(const common::ImageU8& mask) {
   common::ImageU8 out = mask;
   for (std::uint8_t& p : out.pixels) p = p != 0 ? 0 : 255;
   return out;
-}
-
-common::ImageU8 Grey(const common::ImageRgb8& rgb) {
-  common::ImageU8 grey(rgb.width, rgb.height);
-  for (std::size_t i = 0; i < grey.pixels.size(); ++i) {
-    const std::uint8_t* p = rgb.pixels.data() + 3 * i;
-    grey.pixels[i] = static_cast<std::uint8_t>((77 * p[0] + 150 * p[1] + 29 * p[2] + 128) >> 8);
-  }
-  return grey;
 }
 
 /// The model's background at every pixel and channel, for "did not adapt" checks.
@@ -718,7 +710,7 @@ TEST(BackgroundModelTest, Mono8PersonStandingStillIsNeverAbsorbed) {
   common::ImageU8 mask;
   for (int i = 0; i < options.learn_frames; ++i) {
     seq.Render(i, /*present=*/false);
-    model.Apply(Grey(seq.frame), &mask);
+    model.Apply(testing::LumaOf(seq.frame), &mask);
   }
   const std::vector<double> learned = Means(model, 1);
   double first_recall = -1.0;
@@ -726,7 +718,7 @@ TEST(BackgroundModelTest, Mono8PersonStandingStillIsNeverAbsorbed) {
   double worst_false_positive = 0.0;
   for (int i = options.learn_frames; i < 20 * static_cast<int>(kRateHz); ++i) {
     seq.Render(i);
-    model.Apply(Grey(seq.frame), &mask);
+    model.Apply(testing::LumaOf(seq.frame), &mask);
     const double recall = ShareForeground(mask, seq.interior);
     if (first_recall < 0.0) first_recall = recall;
     worst_recall = std::min(worst_recall, recall);
@@ -1269,10 +1261,10 @@ TEST(BackgroundModelTest, AnotherPixelFormatRestartsLearning) {
   ASSERT_FALSE(model.learning());
   model.Apply(base, &mask);
   EXPECT_EQ(model.foreground_fraction(), 0.0);
-  model.Apply(Grey(base), &mask);
+  model.Apply(testing::LumaOf(base), &mask);
   EXPECT_TRUE(model.learning());
   EXPECT_EQ(model.foreground_fraction(), 1.0);
-  for (int i = 0; i < 5; ++i) model.Apply(Grey(base), &mask);
+  for (int i = 0; i < 5; ++i) model.Apply(testing::LumaOf(base), &mask);
   EXPECT_FALSE(model.learning());
   EXPECT_EQ(model.foreground_fraction(), 0.0);
 }
@@ -1292,7 +1284,7 @@ TEST(BackgroundModelTest, NoAllocationPerFrame) {
     }
   }
   std::vector<common::ImageU8> grey;
-  for (const auto& f : frames) grey.push_back(Grey(f));
+  for (const auto& f : frames) grey.push_back(testing::LumaOf(f));
   for (const bool shadows : {true, false}) {
     BackgroundModelOptions options;
     options.shadows_are_foreground = shadows;
